@@ -1,0 +1,1 @@
+"""firmware_sim: the simulated motor/furnace CAN node of the rod mill."""

@@ -1,0 +1,91 @@
+"""The ``millctl`` command line: one module per command group, registered here.
+
+Each command module exposes ``register(subparsers)``, which adds its parser
+and sets ``handler`` to a function ``(args) -> int``. Modules import heavy
+dependencies inside their handlers, so that ``millctl --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from millctl import __version__
+from millctl.errors import ExitCode, MillctlError
+
+COMMAND_MODULES = (
+    "millctl.cli.config_cmd",
+    "millctl.cli.limits_cmd",
+)
+"""Command modules, in the order ``--help`` lists them."""
+
+EPILOG = """\
+exit codes:
+  0  ok
+  1  invalid input (config, recipe, argument, request)
+  2  interlock refusal or trip, or an aborted run
+  3  bus, node or service error
+  4  internal error (rerun with --debug for the traceback)
+
+configuration: --config FILE > $MILLCTL_CONFIG > ./config/mill.toml > packaged default
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors exit with ExitCode.INVALID_INPUT."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.print_usage(sys.stderr)
+        self.exit(int(ExitCode.INVALID_INPUT), f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, with every registered command."""
+    parser = _Parser(
+        prog="millctl",
+        description="Control and test bench for a horizontal vibratory rod mill.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"millctl {__version__}")
+    parser.add_argument("--config", metavar="FILE", help="mill configuration (TOML)")
+    parser.add_argument("--debug", action="store_true", help="debug logging and tracebacks on errors")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``millctl``; return its exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.debug else logging.WARNING,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+        stream=sys.stderr,
+    )
+    if not getattr(args, "handler", None):
+        parser.print_help(sys.stderr)
+        return int(ExitCode.INVALID_INPUT)
+    try:
+        return int(args.handler(args))
+    except MillctlError as exc:
+        if args.debug:
+            logging.exception("millctl failed")
+        print(f"millctl: {exc}", file=sys.stderr)
+        return int(exc.exit_code)
+    except KeyboardInterrupt:
+        print("millctl: interrupted", file=sys.stderr)
+        return int(ExitCode.INTERLOCK)
+    except Exception as exc:
+        if args.debug:
+            raise
+        print(f"millctl: internal error: {type(exc).__name__}: {exc} (rerun with --debug)", file=sys.stderr)
+        return int(ExitCode.INTERNAL)
+
+
+__all__ = ["COMMAND_MODULES", "build_parser", "main"]

@@ -1,0 +1,50 @@
+"""``millctl config show|check``: print or validate a mill configuration."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.console import Console
+
+from millctl.cli.output import print_json, stdout_console
+from millctl.config import load_config
+from millctl.errors import ExitCode
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``config show`` and ``config check``."""
+    parser = subparsers.add_parser("config", help="show or check a mill configuration")
+    sub = parser.add_subparsers(dest="config_command", metavar="ACTION", required=True)
+    show = sub.add_parser("show", help="print the configuration in force and where it came from")
+    show.add_argument("--json", action="store_true", help="machine-readable output")
+    show.set_defaults(handler=_show)
+    check = sub.add_parser("check", help="validate a configuration file (exit 1 when invalid)")
+    check.add_argument("file", help="the TOML file to check")
+    check.set_defaults(handler=_check)
+
+
+def _show(args: argparse.Namespace) -> int:
+    loaded = load_config(args.config)
+    data = loaded.config.model_dump(mode="json")
+    if args.json:
+        print_json({"source": loaded.source, "sha256": loaded.sha256, "config": data})
+        return int(ExitCode.OK)
+    console = stdout_console()
+    console.print(f"# source: {loaded.source}  sha256: {loaded.sha256[:16]}")
+    console.print(f"# rod mass m = {loaded.config.rod_mass_kg:.5f} kg (derived)")
+    _print_tree(console, data, "")
+    return int(ExitCode.OK)
+
+
+def _print_tree(console: Console, data: dict[str, object], prefix: str) -> None:
+    for key, value in data.items():
+        if isinstance(value, dict) and value:
+            _print_tree(console, value, f"{prefix}{key}.")
+        else:
+            console.print(f"{prefix}{key} = {value!r}", markup=False)
+
+
+def _check(args: argparse.Namespace) -> int:
+    loaded = load_config(args.file)
+    stdout_console().print(f"{loaded.source}: ok ({loaded.config.name})", markup=False)
+    return int(ExitCode.OK)

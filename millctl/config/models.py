@@ -1,0 +1,326 @@
+"""Pydantic models of the mill configuration (``config/mill.toml``).
+
+Every field carries its unit in its name and a bound; unknown keys are
+rejected. SI quantities for the physics are derived properties (``*_m``,
+``*_kg``, ``*_rad_s``) so that the file can speak the lab's units (mm, rpm,
+°C) while the code computes in SI.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from millctl.units import rpm_to_rad_s
+
+G_M_S2 = 9.80665
+"""Standard gravity (m/s²)."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class LimitLaw(enum.StrEnum):
+    """The detachment limit that bounds the rotary speed (see docs/model.md)."""
+
+    PAPER_EQ9 = "paper-eq9"
+    """Printed eq. 9: the paper's bound with sin α = −1 (the paper's recommended default)."""
+    PAPER_EVERY_CYCLE = "paper-every-cycle"
+    """The paper's eq. 7 at its true worst phase, chosen by the sign of k − mω_v²."""
+    CORRECTED_EVERY_PHASE = "corrected-every-phase"
+    """Corrected physics, detachment at every cam phase: √(g(1 − Γ)/r0)."""
+    CORRECTED_BEST_PHASE = "corrected-best-phase"
+    """Corrected physics, detachment at the most favourable cam phase: √(g(1 + Γ)/r0)."""
+
+
+class ModelVariant(enum.StrEnum):
+    """Which physics the simulation runs: the paper as printed, or corrected (docs/model.md)."""
+
+    PAPER = "paper"
+    CORRECTED = "corrected"
+
+
+class Material(_Strict):
+    """Elastic and mass properties of a rod or vial material."""
+
+    density_kg_m3: Annotated[float, Field(gt=500.0, le=25_000.0)]
+    youngs_modulus_gpa: Annotated[float, Field(gt=1.0, le=1_500.0)]
+    poisson_ratio: Annotated[float, Field(ge=0.0, lt=0.5)]
+    note: str = ""
+
+    @property
+    def youngs_modulus_pa(self) -> float:
+        """Young's modulus (Pa)."""
+        return self.youngs_modulus_gpa * 1e9
+
+
+class Rods(_Strict):
+    """The milling rods (all equal)."""
+
+    material: str = "steel"
+    radius_mm: Annotated[float, Field(gt=0.0, le=100.0)]
+    length_mm: Annotated[float, Field(gt=0.0, le=2_000.0)]
+    count: Annotated[int, Field(ge=1, le=64)]
+
+    @property
+    def radius_m(self) -> float:
+        """Rod radius r_r (m)."""
+        return self.radius_mm * 1e-3
+
+    @property
+    def length_m(self) -> float:
+        """Rod length L (m)."""
+        return self.length_mm * 1e-3
+
+
+class Vial(_Strict):
+    """The vial (a cylindrical bore)."""
+
+    material: str = "steel"
+    radius_mm: Annotated[float, Field(gt=0.0, le=500.0)]
+
+    @property
+    def radius_m(self) -> float:
+        """Vial radius r_v (m)."""
+        return self.radius_mm * 1e-3
+
+
+class Cam(_Strict):
+    """The vibration cam and its geometry."""
+
+    eccentricity_mm: Annotated[float, Field(ge=0.0, le=50.0)]
+    """Cam eccentricity r_d, the vibration amplitude (mm)."""
+    cam_to_vial_m: Annotated[float, Field(gt=0.0, le=5.0)]
+    """Distance l from the cam centre to the vial centre at its highest point (m)."""
+
+    @property
+    def eccentricity_m(self) -> float:
+        """Cam eccentricity r_d (m)."""
+        return self.eccentricity_mm * 1e-3
+
+
+class Spring(_Strict):
+    """The four springs between the platforms, as one equivalent stiffness."""
+
+    stiffness_n_per_m: Annotated[float, Field(ge=0.0, le=1e7)]
+
+
+class Model(_Strict):
+    """Choices of the physics model (docs/model.md)."""
+
+    variant: ModelVariant = ModelVariant.PAPER
+    restitution: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    """Coefficient of restitution e of rod impacts; 0 is the paper's plastic impact (eq. 19)."""
+    powder_friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
+    """Friction coefficient μ between rod or vial and powder (eqs 20, 25)."""
+
+
+class Mill(_Strict):
+    """Geometry of the mill: rods, vial, cam and spring."""
+
+    rods: Rods
+    vial: Vial
+    cam: Cam
+    spring: Spring
+
+    @model_validator(mode="after")
+    def _rods_fit(self) -> Mill:
+        r_r, r_v, n = self.rods.radius_mm, self.vial.radius_mm, self.rods.count
+        if r_r >= r_v:
+            raise ValueError(f"rods.radius_mm = {r_r} must be < vial.radius_mm = {r_v}: the rods must fit in the vial")
+        if n > 1:
+            # n equal circles of radius r_r centred on a circle of radius r0 = r_v - r_r
+            # touch when the chord 2 r0 sin(π/n) equals 2 r_r (packing limit).
+            chord_mm = 2.0 * (r_v - r_r) * math.sin(math.pi / n)
+            if chord_mm < 2.0 * r_r:
+                raise ValueError(
+                    f"rods.count = {n} rods of radius {r_r} mm overlap on the wall of a "
+                    f"{r_v} mm vial: centre spacing {chord_mm:.3f} mm < rod diameter "
+                    f"{2 * r_r:.3f} mm (packing limit)"
+                )
+        return self
+
+
+class Drive(_Strict):
+    """One motor drive: absolute limits and first-order speed dynamics."""
+
+    max_speed_rpm: Annotated[float, Field(gt=0.0, le=10_000.0)]
+    max_accel_rpm_s: Annotated[float, Field(gt=0.0, le=10_000.0)]
+    time_constant_s: Annotated[float, Field(gt=0.0, le=60.0)] = 0.2
+    speed_noise_rpm: Annotated[float, Field(ge=0.0, le=100.0)] = 0.5
+    """Standard deviation of the measured-speed noise (rpm)."""
+    rated_torque_nm: Annotated[float, Field(gt=0.0, le=1_000.0)] = 2.0
+
+
+class Drives(_Strict):
+    """The two drives of the mill."""
+
+    rotary: Drive
+    vibration: Drive
+
+
+class Furnace(_Strict):
+    """The furnace around the vial, and its limits."""
+
+    ambient_temp_c: Annotated[float, Field(ge=-20.0, le=60.0)] = 25.0
+    min_setpoint_c: Annotated[float, Field(ge=-20.0, le=200.0)] = 20.0
+    max_setpoint_c: Annotated[float, Field(gt=0.0, le=1_600.0)] = 900.0
+    over_temp_c: Annotated[float, Field(gt=0.0, le=1_700.0)] = 950.0
+    max_heating_rate_c_per_min: Annotated[float, Field(gt=0.0, le=200.0)] = 20.0
+    heater_power_w: Annotated[float, Field(gt=0.0, le=50_000.0)] = 1_500.0
+    heat_capacity_j_per_k: Annotated[float, Field(gt=0.0, le=1e7)] = 4_000.0
+    loss_w_per_k: Annotated[float, Field(gt=0.0, le=1_000.0)] = 1.2
+    setpoint_refresh_s: Annotated[float, Field(gt=0.0, le=60.0)] = 3.0
+    """The heater turns off when its setpoint is not refreshed within this time (s)."""
+    verify_period_s: Annotated[float, Field(gt=0.0, le=600.0)] = 30.0
+    verify_min_rise_c: Annotated[float, Field(gt=0.0, le=100.0)] = 2.0
+    """Heater verification: heating at full power must raise the temperature this much per period."""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Furnace:
+        if not self.min_setpoint_c < self.max_setpoint_c < self.over_temp_c:
+            raise ValueError(
+                "need min_setpoint_c < max_setpoint_c < over_temp_c, got "
+                f"{self.min_setpoint_c} / {self.max_setpoint_c} / {self.over_temp_c}"
+            )
+        return self
+
+
+class Interlock(_Strict):
+    """The eq. 9 interlock (docs/safety.md)."""
+
+    law: LimitLaw = LimitLaw.PAPER_EQ9
+    margin: Annotated[float, Field(ge=0.0, le=0.5)] = 0.05
+    """Fraction kept below the law's limit: ω_r ≤ (1 − margin)·ω_r,max(ω_v)."""
+    debounce_samples: Annotated[int, Field(ge=1, le=50)] = 3
+    """Consecutive out-of-envelope measurements that trip."""
+    measurement_tolerance_rpm: Annotated[float, Field(ge=0.0, le=100.0)] = 3.0
+    """Allowance for measurement noise before a measured pair counts as outside."""
+    stale_periods: Annotated[float, Field(ge=2.0, le=100.0)] = 10.0
+    min_stale_s: Annotated[float, Field(gt=0.0, le=60.0)] = 1.0
+    """A node frame is stale after max(stale_periods × its period, min_stale_s)."""
+    e2e_error_limit: Annotated[int, Field(ge=1, le=100)] = 5
+    """Net E2E error score that faults a link."""
+
+
+class Timing(_Strict):
+    """Periods and timeouts of the controller and the node."""
+
+    heartbeat_period_s: Annotated[float, Field(gt=0.0, le=1.0)] = 0.05
+    watchdog_timeout_s: Annotated[float, Field(gt=0.0, le=10.0)] = 0.25
+    node_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
+    controller_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
+    setpoint_period_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.1
+
+    @model_validator(mode="after")
+    def _watchdog_after_heartbeat(self) -> Timing:
+        if self.watchdog_timeout_s < 2.0 * self.heartbeat_period_s:
+            raise ValueError(
+                f"watchdog_timeout_s = {self.watchdog_timeout_s} must be ≥ 2 × heartbeat_period_s "
+                f"= {2.0 * self.heartbeat_period_s}: one lost heartbeat must not trip"
+            )
+        return self
+
+
+BusInterface = Literal["virtual", "socketcan", "udp_multicast", "millctl_udp_multicast"]
+
+
+class Bus(_Strict):
+    """The CAN bus, as python-can sees it (turned into a ``can.Bus`` in one place)."""
+
+    interface: BusInterface = "virtual"
+    channel: str = "millbus"
+    bitrate_bit_s: Annotated[int, Field(ge=10_000, le=1_000_000)] = 500_000
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("channel")
+    @classmethod
+    def _channel_nonempty(cls, value: str) -> str:
+        if not value.strip():
+            raise ValueError("channel must not be empty")
+        return value
+
+
+class Service(_Strict):
+    """Where the controller service listens and writes its records."""
+
+    socket_path: str = "var/millctl.sock"
+    socket_mode: Annotated[int, Field(ge=0o600, le=0o660)] = 0o600
+    tcp_port: Annotated[int, Field(ge=0, le=65_535)] = 0
+    """Loopback TCP port; 0 disables TCP. TCP needs ``token_file``."""
+    token_file: str = ""
+    records_dir: str = "var/records"
+    rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
+    keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+
+
+class MillConfig(_Strict):
+    """The whole configuration of one mill (``config/mill.toml``)."""
+
+    name: str = "rod mill"
+    materials: dict[str, Material]
+    mill: Mill
+    model: Model = Model()
+    drives: Drives
+    furnace: Furnace = Furnace()
+    interlock: Interlock = Interlock()
+    timing: Timing = Timing()
+    bus: Bus = Bus()
+    service: Service = Service()
+
+    @model_validator(mode="after")
+    def _materials_exist(self) -> MillConfig:
+        for where, name in (
+            ("mill.rods.material", self.mill.rods.material),
+            ("mill.vial.material", self.mill.vial.material),
+        ):
+            if name not in self.materials:
+                known = ", ".join(sorted(self.materials)) or "none"
+                raise ValueError(f"{where} = {name!r} is not a defined material (defined: {known})")
+        return self
+
+    @property
+    def rod_material(self) -> Material:
+        """Material of the rods."""
+        return self.materials[self.mill.rods.material]
+
+    @property
+    def vial_material(self) -> Material:
+        """Material of the vial."""
+        return self.materials[self.mill.vial.material]
+
+    @property
+    def rod_mass_kg(self) -> float:
+        """Mass m of one rod (kg): ρ·π·r_r²·L."""
+        rods = self.mill.rods
+        return self.rod_material.density_kg_m3 * math.pi * rods.radius_m**2 * rods.length_m
+
+    def omega_r_abs_max_rad_s(self) -> float:
+        """Absolute rotary speed limit of the drive (rad/s)."""
+        return rpm_to_rad_s(self.drives.rotary.max_speed_rpm)
+
+
+__all__ = [
+    "G_M_S2",
+    "Bus",
+    "Cam",
+    "Drive",
+    "Drives",
+    "Furnace",
+    "Interlock",
+    "LimitLaw",
+    "Material",
+    "Mill",
+    "MillConfig",
+    "Model",
+    "ModelVariant",
+    "Rods",
+    "Service",
+    "Spring",
+    "Timing",
+    "Vial",
+]

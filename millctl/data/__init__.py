@@ -1,0 +1,1 @@
+"""Data files shipped with millctl (links to the repository's ``config/``)."""
