@@ -1,0 +1,181 @@
+"""The ramp planner: moves between speed pairs whose every instant stays inside the envelope.
+
+A move from A = (ω_r0, ω_v0) to B = (ω_r1, ω_v1) is planned as three
+one-axis ramps through a safe corridor (docs/safety.md#whole-ramp-check):
+
+1. ω_r down (or hold) to ω_r,low at ω_v0,
+2. ω_v from ω_v0 to ω_v1 at ω_r,low,
+3. ω_r up (or hold) to ω_r1 at ω_v1,
+
+with ω_r,low = min(ω_r0, ω_r1, min over [ω_v0, ω_v1] of the envelope limit).
+Every segment is inside: ramps 1 and 3 run below an endpoint that is inside
+at a fixed ω_v; ramp 2 runs below the lowest limit on its way. Where the
+limit rises with ω_v (printed eq. 9) this raises ω_v before ω_r and lowers
+ω_r before ω_v; where it falls, the other way round — with no special case.
+
+Every law of :mod:`millctl.physics.limits` is unimodal in ω_v, so the lowest
+limit over an interval lies at an end; the planner still checks a grid in
+between, so a future law that is not unimodal is handled conservatively.
+
+Setpoints travel on the wire with a finite resolution. Endpoints are snapped
+to that grid and ω_r,low is rounded down onto it, so that a point on a ramp
+rounded by the codec stays between the ramp's grid-aligned ends and inside.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millctl.safety import Envelope, InterlockRefused, Verdict
+
+INTERIOR_GRID = 65
+"""Points at which the limit is also checked inside an ω_v sweep."""
+
+
+@dataclass(frozen=True)
+class SpeedPoint:
+    """A pair of drive speeds (rpm)."""
+
+    omega_r_rpm: float
+    omega_v_rpm: float
+
+
+STANDSTILL = SpeedPoint(0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A linear ramp of one or both speeds between two instants (s, from the move's start)."""
+
+    t0_s: float
+    t1_s: float
+    start: SpeedPoint
+    end: SpeedPoint
+
+    def at(self, t_s: float) -> SpeedPoint:
+        """Speeds at time ``t_s`` (clamped to the segment)."""
+        span = self.t1_s - self.t0_s
+        f = 1.0 if span <= 0.0 else min(max((t_s - self.t0_s) / span, 0.0), 1.0)
+        return SpeedPoint(
+            self.start.omega_r_rpm + f * (self.end.omega_r_rpm - self.start.omega_r_rpm),
+            self.start.omega_v_rpm + f * (self.end.omega_v_rpm - self.start.omega_v_rpm),
+        )
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A planned move: consecutive segments from ``start`` to ``end``."""
+
+    start: SpeedPoint
+    end: SpeedPoint
+    segments: tuple[Segment, ...]
+
+    @property
+    def duration_s(self) -> float:
+        """Time the whole move takes (s)."""
+        return self.segments[-1].t1_s if self.segments else 0.0
+
+    def at(self, t_s: float) -> SpeedPoint:
+        """Speeds at ``t_s`` seconds after the move began (the end once it is over)."""
+        for segment in self.segments:
+            if t_s <= segment.t1_s:
+                return segment.at(t_s)
+        return self.end
+
+    def vertices(self) -> list[SpeedPoint]:
+        """The corners of the path, start and end included."""
+        return [self.start, *(s.end for s in self.segments)]
+
+    def sample(self, dt_s: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Times (s), ω_r (rpm) and ω_v (rpm) every ``dt_s``, ends included."""
+        n = max(2, math.ceil(self.duration_s / dt_s) + 1)
+        times = np.linspace(0.0, self.duration_s, n)
+        points = [self.at(float(t)) for t in times]
+        return (
+            times,
+            np.array([p.omega_r_rpm for p in points]),
+            np.array([p.omega_v_rpm for p in points]),
+        )
+
+    def min_margin_rpm(self, envelope: Envelope, dt_s: float = 0.05) -> float:
+        """Smallest distance to the rotary limit along the move (rpm); standstill counts as +inf."""
+        _, w_r, w_v = self.sample(dt_s)
+        margins = np.where(w_r == 0.0, np.inf, envelope.omega_r_limit_rpm(w_v) - w_r)
+        return float(np.min(margins))
+
+
+class RampPlanner:
+    """Plans moves and stops inside one envelope, on the wire's speed grid."""
+
+    def __init__(self, envelope: Envelope, resolution_rpm: float = 0.1) -> None:
+        if not resolution_rpm > 0.0:
+            raise ValueError(f"resolution_rpm = {resolution_rpm} must be > 0")
+        self.envelope = envelope
+        self.resolution_rpm = resolution_rpm
+
+    def snap(self, point: SpeedPoint) -> SpeedPoint:
+        """Round a pair onto the wire grid (what the node will receive)."""
+        q = self.resolution_rpm
+        return SpeedPoint(round(point.omega_r_rpm / q) * q, round(point.omega_v_rpm / q) * q)
+
+    def _floor(self, value_rpm: float) -> float:
+        q = self.resolution_rpm
+        return max(0.0, math.floor(value_rpm / q + 1e-9) * q)
+
+    def lowest_limit_rpm(self, omega_v0_rpm: float, omega_v1_rpm: float) -> float:
+        """The lowest enforced rotary limit over the ω_v interval (rpm)."""
+        grid = np.linspace(omega_v0_rpm, omega_v1_rpm, INTERIOR_GRID)
+        return float(np.min(self.envelope.omega_r_limit_rpm(grid)))
+
+    def check_target(self, target: SpeedPoint) -> Verdict:
+        """The envelope's verdict on a target as the node will see it (snapped)."""
+        snapped = self.snap(target)
+        return self.envelope.check(snapped.omega_r_rpm, snapped.omega_v_rpm)
+
+    def plan(
+        self,
+        start: SpeedPoint,
+        target: SpeedPoint,
+        rotary_rate_rpm_s: float | None = None,
+        vibration_rate_rpm_s: float | None = None,
+        *,
+        allow_outside_start: bool = False,
+    ) -> Trajectory:
+        """Plan a move; refuse (InterlockRefused) a target or rate outside the envelope."""
+        env = self.envelope
+        rate_r = env.rotary_max_accel_rpm_s if rotary_rate_rpm_s is None else rotary_rate_rpm_s
+        rate_v = env.vibration_max_accel_rpm_s if vibration_rate_rpm_s is None else vibration_rate_rpm_s
+        rates = env.check_rates(rate_r, rate_v)
+        if not rates.ok:
+            raise InterlockRefused(rates, "ramp")
+        a, b = self.snap(start), self.snap(target)
+        verdict = env.check(b.omega_r_rpm, b.omega_v_rpm)
+        if not verdict.ok:
+            raise InterlockRefused(verdict, "target")
+        start_verdict = env.check(a.omega_r_rpm, a.omega_v_rpm)
+        if not start_verdict.ok and not allow_outside_start:
+            raise InterlockRefused(start_verdict, "ramp start")
+        r_low = min(a.omega_r_rpm, b.omega_r_rpm)
+        if a.omega_v_rpm != b.omega_v_rpm:
+            r_low = min(r_low, self._floor(self.lowest_limit_rpm(a.omega_v_rpm, b.omega_v_rpm)))
+        corners = [a, SpeedPoint(r_low, a.omega_v_rpm), SpeedPoint(r_low, b.omega_v_rpm), b]
+        segments: list[Segment] = []
+        t = 0.0
+        for p, q in zip(corners, corners[1:], strict=False):
+            if p == q:
+                continue
+            duration = abs(q.omega_r_rpm - p.omega_r_rpm) / rate_r + abs(q.omega_v_rpm - p.omega_v_rpm) / rate_v
+            segments.append(Segment(t, t + duration, p, q))
+            t += duration
+        return Trajectory(a, b, tuple(segments))
+
+    def plan_stop(self, current: SpeedPoint) -> Trajectory:
+        """The controlled stop (category 1) from wherever the mill is, at the drives' maximum rates."""
+        return self.plan(current, STANDSTILL, allow_outside_start=True)
+
+
+__all__ = ["STANDSTILL", "RampPlanner", "Segment", "SpeedPoint", "Trajectory"]

@@ -1,0 +1,92 @@
+"""The ramp planner: every instant of every planned move stays inside the envelope."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from millctl.config import LimitLaw
+from millctl.controller.planner import STANDSTILL, RampPlanner, SpeedPoint
+from millctl.safety import Envelope, InterlockRefused
+
+
+def envelope_for(config, law: LimitLaw) -> Envelope:
+    return Envelope.from_config(config.model_copy(update={"interlock": config.interlock.model_copy(update={"law": law})}))
+
+
+@pytest.fixture(scope="module")
+def planner(config) -> RampPlanner:
+    return RampPlanner(Envelope.from_config(config))
+
+
+def test_start_up_raises_vibration_before_rotation(planner):
+    move = planner.plan(STANDSTILL, SpeedPoint(180.0, 800.0))
+    first, second = move.segments
+    assert first.end == SpeedPoint(0.0, 800.0)  # ω_v first: eq. 9's limit rises with ω_v
+    assert second.end == SpeedPoint(180.0, 800.0)
+    assert move.duration_s == pytest.approx(800.0 / 120.0 + 180.0 / 40.0)
+
+
+def test_stop_lowers_rotation_before_vibration(planner):
+    stop = planner.plan_stop(SpeedPoint(180.0, 800.0))
+    assert stop.segments[0].end == SpeedPoint(0.0, 800.0)
+    assert stop.end == STANDSTILL
+
+
+def test_corrected_law_lowers_vibration_first_when_its_limit_falls(config):
+    planner = RampPlanner(envelope_for(config, LimitLaw.CORRECTED_EVERY_PHASE))
+    # at 900 rpm the every-phase limit is ~65 rpm; at 300 rpm it is ~200 rpm
+    move = planner.plan(SpeedPoint(60.0, 900.0), SpeedPoint(150.0, 300.0))
+    assert [s.end for s in move.segments] == [SpeedPoint(60.0, 300.0), SpeedPoint(150.0, 300.0)]
+
+
+def test_over_limit_target_is_refused_with_reason(planner):
+    with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm"):
+        planner.plan(STANDSTILL, SpeedPoint(250.0, 800.0))
+
+
+def test_rate_beyond_drive_is_refused(planner):
+    with pytest.raises(InterlockRefused, match="max_accel_rpm_s"):
+        planner.plan(STANDSTILL, SpeedPoint(100.0, 800.0), rotary_rate_rpm_s=1000.0)
+
+
+def test_target_at_the_edge_survives_snapping(planner):
+    edge = float(planner.envelope.omega_r_limit_rpm(800.0))
+    with pytest.raises(InterlockRefused):
+        planner.plan(STANDSTILL, SpeedPoint(edge + 0.04, 800.0))  # rounds above the limit
+    assert planner.plan(STANDSTILL, SpeedPoint(edge - 0.05, 800.0)).end.omega_r_rpm <= edge
+
+
+def inside_points(envelope: Envelope):
+    @st.composite
+    def point(draw):
+        w_v = draw(st.integers(0, int(envelope.vibration_max_rpm * 10))) / 10.0
+        limit = float(envelope.omega_r_limit_rpm(w_v))
+        top = int(limit * 10)
+        w_r = draw(st.integers(0, max(top, 0))) / 10.0 if top > 0 else 0.0
+        return SpeedPoint(w_r, w_v)
+
+    return point()
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), law=st.sampled_from(list(LimitLaw)))
+def test_every_instant_of_every_move_is_inside(config, data, law):
+    envelope = envelope_for(config, law)
+    planner = RampPlanner(envelope)
+    start = data.draw(inside_points(envelope), label="start")
+    target = data.draw(inside_points(envelope), label="target")
+    rate_r = data.draw(st.floats(1.0, envelope.rotary_max_accel_rpm_s), label="rate_r")
+    rate_v = data.draw(st.floats(1.0, envelope.vibration_max_accel_rpm_s), label="rate_v")
+    for move in (planner.plan(start, target, rate_r, rate_v), planner.plan_stop(target)):
+        assert move.end == planner.snap(move.end)
+        times = [0.0, move.duration_s] + [s.t0_s for s in move.segments]
+        times += [data.draw(st.floats(0.0, move.duration_s), label="t") for _ in range(5)]
+        _, w_r, w_v = move.sample(dt_s=max(move.duration_s / 200.0, 1e-3))
+        points = [move.at(t) for t in times] + [SpeedPoint(r, v) for r, v in zip(w_r, w_v, strict=True)]
+        for p in points:
+            # what the node receives: the point rounded onto the wire grid
+            q = planner.snap(p)
+            verdict = envelope.check(q.omega_r_rpm, q.omega_v_rpm)
+            assert verdict.ok, (law, start, target, p, verdict.reason())
