@@ -67,11 +67,7 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
     """Compute the limits table as plain data."""
     loaded = load_config(args.config)
     config = loaded.config
-    if args.law:
-        config = config.model_copy(
-            update={"interlock": config.interlock.model_copy(update={"law": LimitLaw(args.law)})}
-        )
-    envelope = Envelope.from_config(config)
+    envelope = Envelope.from_config(config, law=LimitLaw(args.law) if args.law else None)
     vib_max = config.drives.vibration.max_speed_rpm
     omega_v_rpm = np.array(args.vib_rpm) if args.vib_rpm else np.arange(0.0, vib_max + 1e-9, 100.0)
     omega_v = rpm_to_rad_s(omega_v_rpm)
@@ -182,9 +178,7 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
     for law in LAWS:
         ax5.plot(w_v_rpm, rad_s_to_rpm(omega_r_max(law, p, w_v)), label=law.value)
     law = LimitLaw(table["law"])
-    envelope = Envelope.from_config(
-        config.model_copy(update={"interlock": config.interlock.model_copy(update={"law": law})})
-    )
+    envelope = Envelope.from_config(config, law=law)
     ax5.fill_between(
         w_v_rpm,
         0,

@@ -24,6 +24,7 @@ rounded by the codec stays between the ramp's grid-aligned ends and inside.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -165,7 +166,7 @@ class RampPlanner:
         corners = [a, SpeedPoint(r_low, a.omega_v_rpm), SpeedPoint(r_low, b.omega_v_rpm), b]
         segments: list[Segment] = []
         t = 0.0
-        for p, q in zip(corners, corners[1:], strict=False):
+        for p, q in itertools.pairwise(corners):
             if p == q:
                 continue
             duration = abs(q.omega_r_rpm - p.omega_r_rpm) / rate_r + abs(q.omega_v_rpm - p.omega_v_rpm) / rate_v

@@ -95,12 +95,12 @@ class Envelope:
         object.__setattr__(self, "_law_text", law_text)
 
     @classmethod
-    def from_config(cls, config: MillConfig) -> Envelope:
-        """Build the envelope from a validated configuration."""
+    def from_config(cls, config: MillConfig, law: LimitLaw | None = None) -> Envelope:
+        """Build the envelope from a validated configuration (``law`` overrides the configured one)."""
         drives, furnace, interlock = config.drives, config.furnace, config.interlock
         return cls(
             params=LimitParams.from_config(config),
-            law=interlock.law,
+            law=interlock.law if law is None else law,
             margin=interlock.margin,
             rotary_max_rpm=drives.rotary.max_speed_rpm,
             vibration_max_rpm=drives.vibration.max_speed_rpm,

@@ -54,11 +54,7 @@ def test_absolute_limits(envelope, w_r, w_v, t, quantity):
 
 
 def test_no_real_limit_allows_only_standstill(config):
-    env = Envelope.from_config(
-        config.model_copy(
-            update={"interlock": config.interlock.model_copy(update={"law": LimitLaw.CORRECTED_EVERY_PHASE})}
-        )
-    )
+    env = Envelope.from_config(config, law=LimitLaw.CORRECTED_EVERY_PHASE)
     verdict = env.check(1.0, 1100.0)
     assert not verdict.ok and "only standstill" in verdict.reason()
     assert env.check(0.0, 1100.0).ok
@@ -79,9 +75,7 @@ def test_rates(envelope):
     st.floats(0.0, 1500.0, allow_nan=False),
 )
 def test_scalar_check_agrees_with_vectorised_limits(config, law, w_r, w_v):
-    env = Envelope.from_config(
-        config.model_copy(update={"interlock": config.interlock.model_copy(update={"law": law})})
-    )
+    env = Envelope.from_config(config, law=law)
     inside = env.check(w_r, w_v).ok
     assert inside == bool(env.contains(np.array([w_r]), np.array([w_v]))[0])
     limit = float(env.omega_r_limit_rpm(w_v))

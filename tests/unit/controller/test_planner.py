@@ -12,7 +12,7 @@ from millctl.safety import Envelope, InterlockRefused
 
 
 def envelope_for(config, law: LimitLaw) -> Envelope:
-    return Envelope.from_config(config.model_copy(update={"interlock": config.interlock.model_copy(update={"law": law})}))
+    return Envelope.from_config(config, law=law)
 
 
 @pytest.fixture(scope="module")

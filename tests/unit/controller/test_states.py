@@ -32,5 +32,8 @@ def test_transitions_are_recorded_with_reason_and_time():
     sm.go(S.DISABLED, "node seen")
     clock.advance(1.5)
     sm.go(S.ARMED, "operator armed")
-    assert [(t.target, t.reason, t.time_s) for t in seen] == [(S.DISABLED, "node seen", 0.0), (S.ARMED, "operator armed", 1.5)]
+    assert [(t.target, t.reason, t.time_s) for t in seen] == [
+        (S.DISABLED, "node seen", 0.0),
+        (S.ARMED, "operator armed", 1.5),
+    ]
     assert sm.go(S.ARMED, "again") is None
