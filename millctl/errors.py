@@ -31,18 +31,32 @@ class InvalidInputError(MillctlError, ValueError):
     exit_code = ExitCode.INVALID_INPUT
 
 
-class ConfigError(InvalidInputError):
-    """A configuration file is missing, unreadable, or fails validation.
+class InvalidFileError(InvalidInputError):
+    """An input file is missing, unreadable, or fails validation.
 
     ``problems`` holds one line per problem, each naming the file, the field,
     the value and the bound.
     """
 
+    what = "file"
+
     def __init__(self, source: str, problems: list[str]) -> None:
         self.source = source
         self.problems = problems
         lines = "\n".join(f"  {p}" for p in problems)
-        super().__init__(f"invalid configuration {source}:\n{lines}")
+        super().__init__(f"invalid {self.what} {source}:\n{lines}")
+
+
+class ConfigError(InvalidFileError):
+    """A mill configuration file is missing, unreadable, or fails validation."""
+
+    what = "configuration"
+
+
+class RecipeError(InvalidFileError):
+    """A recipe file is missing, unreadable, fails validation, or leaves the envelope."""
+
+    what = "recipe"
 
 
 class PhysicsInputError(InvalidInputError):
@@ -66,7 +80,9 @@ __all__ = [
     "ConfigError",
     "ExitCode",
     "InterlockError",
+    "InvalidFileError",
     "InvalidInputError",
     "MillctlError",
     "PhysicsInputError",
+    "RecipeError",
 ]

@@ -12,10 +12,14 @@ from typing import Any
 
 from rich.console import Console
 
+PIPE_WIDTH = 160
+"""Width of tables written to a pipe or file, where no terminal says how wide to be."""
+
 
 def stdout_console() -> Console:
     """A console for data on stdout (rich honours NO_COLOR and detects TTYs)."""
-    return Console(file=sys.stdout, highlight=False, soft_wrap=True)
+    width = None if sys.stdout.isatty() else PIPE_WIDTH
+    return Console(file=sys.stdout, highlight=False, soft_wrap=True, width=width)
 
 
 def stderr_console() -> Console:

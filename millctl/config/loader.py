@@ -18,7 +18,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel, ValidationError
 
 from millctl.config.models import MillConfig
-from millctl.errors import ConfigError
+from millctl.errors import ConfigError, InvalidFileError
 
 ENV_VAR = "MILLCTL_CONFIG"
 LOCAL_PATH = Path("config") / "mill.toml"
@@ -83,28 +83,30 @@ def format_validation_errors(source: str, error: ValidationError) -> list[str]:
     return lines
 
 
-def read_toml(path: Path) -> tuple[dict[str, Any], bytes]:
-    """Read a TOML file; a missing file or bad syntax is a ConfigError naming the file."""
+def read_toml(path: Path, error: type[InvalidFileError] = ConfigError) -> tuple[dict[str, Any], bytes]:
+    """Read a TOML file; a missing file or bad syntax raises ``error`` naming the file."""
     try:
         raw = path.read_bytes()
     except FileNotFoundError:
-        raise ConfigError(str(path), [f"{path}: no such file"]) from None
+        raise error(str(path), [f"{path}: no such file"]) from None
     except OSError as exc:
-        raise ConfigError(str(path), [f"{path}: cannot read: {exc.strerror}"]) from None
+        raise error(str(path), [f"{path}: cannot read: {exc.strerror}"]) from None
     try:
         return tomllib.loads(raw.decode("utf-8")), raw
     except UnicodeDecodeError as exc:
-        raise ConfigError(str(path), [f"{path}: not UTF-8 text ({exc.reason})"]) from None
+        raise error(str(path), [f"{path}: not UTF-8 text ({exc.reason})"]) from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(path), [f"{path}: TOML syntax error: {exc}"]) from None
+        raise error(str(path), [f"{path}: TOML syntax error: {exc}"]) from None
 
 
-def validate_as(model: type[M], data: dict[str, Any], source: str) -> M:
-    """Validate a dict against a model, turning pydantic's errors into a ConfigError."""
+def validate_as(
+    model: type[M], data: dict[str, Any], source: str, error: type[InvalidFileError] = ConfigError
+) -> M:
+    """Validate a dict against a model, turning pydantic's errors into ``error`` (one line each)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ConfigError(source, format_validation_errors(source, exc)) from None
+        raise error(source, format_validation_errors(source, exc)) from None
 
 
 def load_config(path: str | os.PathLike[str] | None = None) -> LoadedConfig:

@@ -174,9 +174,56 @@ class RampPlanner:
             t += duration
         return Trajectory(a, b, tuple(segments))
 
+    def plan_linear(
+        self,
+        start: SpeedPoint,
+        target: SpeedPoint,
+        rotary_rate_rpm_s: float | None = None,
+        vibration_rate_rpm_s: float | None = None,
+    ) -> Trajectory:
+        """Both speeds together along the straight line, as an operator may write it.
+
+        Refused when any instant of the line leaves the envelope, though both
+        ends may be inside (the limit curve is not straight).
+        """
+        env = self.envelope
+        rate_r = env.rotary_max_accel_rpm_s if rotary_rate_rpm_s is None else rotary_rate_rpm_s
+        rate_v = env.vibration_max_accel_rpm_s if vibration_rate_rpm_s is None else vibration_rate_rpm_s
+        rates = env.check_rates(rate_r, rate_v)
+        if not rates.ok:
+            raise InterlockRefused(rates, "ramp")
+        a, b = self.snap(start), self.snap(target)
+        duration = max(abs(b.omega_r_rpm - a.omega_r_rpm) / rate_r, abs(b.omega_v_rpm - a.omega_v_rpm) / rate_v)
+        move = Trajectory(a, b, (Segment(0.0, duration, a, b),) if a != b else ())
+        violation = first_violation(move, env)
+        if violation is not None:
+            t_s, verdict = violation
+            raise InterlockRefused(verdict, f"linear ramp at t = {t_s:.1f} s of {duration:.1f} s")
+        return move
+
     def plan_stop(self, current: SpeedPoint) -> Trajectory:
         """The controlled stop (category 1) from wherever the mill is, at the drives' maximum rates."""
         return self.plan(current, STANDSTILL, allow_outside_start=True)
 
 
-__all__ = ["STANDSTILL", "RampPlanner", "Segment", "SpeedPoint", "Trajectory"]
+def first_violation(move: Trajectory, envelope: Envelope, points: int = 400) -> tuple[float, Verdict] | None:
+    """The first instant (s) of a move outside the envelope, with the verdict there; None when inside."""
+    times = [0.0]
+    for segment in move.segments:
+        times.extend(np.linspace(segment.t0_s, segment.t1_s, points)[1:].tolist())
+    for t_s in times:
+        p = move.at(t_s)
+        verdict = envelope.check(p.omega_r_rpm, p.omega_v_rpm)
+        if not verdict.ok:
+            return t_s, verdict
+    return None
+
+
+__all__ = [
+    "STANDSTILL",
+    "RampPlanner",
+    "Segment",
+    "SpeedPoint",
+    "Trajectory",
+    "first_violation",
+]

@@ -90,3 +90,18 @@ def test_every_instant_of_every_move_is_inside(config, data, law):
             q = planner.snap(p)
             verdict = envelope.check(q.omega_r_rpm, q.omega_v_rpm)
             assert verdict.ok, (law, start, target, p, verdict.reason())
+
+
+def test_linear_ramp_that_crosses_the_limit_midway_is_refused(planner):
+    start, target = SpeedPoint(140.0, 0.0), SpeedPoint(230.0, 1200.0)
+    assert planner.envelope.check(140.0, 0.0).ok and planner.envelope.check(230.0, 1200.0).ok
+    with pytest.raises(InterlockRefused, match=r"linear ramp at t = .* exceeds the limit"):
+        planner.plan_linear(start, target)
+    # the sequenced plan between the same ends is fine
+    assert planner.plan(start, target).end == target
+
+
+def test_linear_ramp_inside_is_one_segment(planner):
+    move = planner.plan_linear(SpeedPoint(100.0, 600.0), SpeedPoint(150.0, 800.0))
+    assert len(move.segments) == 1
+    assert move.duration_s == pytest.approx(max(50.0 / 40.0, 200.0 / 120.0))

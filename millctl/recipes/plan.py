@@ -1,0 +1,177 @@
+"""Pre-flight a recipe: the timeline of every step, and every place it would leave the envelope.
+
+The same :class:`~millctl.controller.planner.RampPlanner` and
+:class:`~millctl.safety.Envelope` that run the mill check the whole planned
+trajectory here, ramps and the final stop included, so that a recipe that
+passes ``millctl recipe check`` is one the controller will not refuse.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from millctl.config.models import MillConfig
+from millctl.controller.planner import STANDSTILL, RampPlanner, SpeedPoint, Trajectory
+from millctl.recipes.schema import HoldStep, PauseStep, RampStep, Recipe, WaitFurnaceStep
+from millctl.safety import Envelope, InterlockRefused, Verdict
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One place a recipe leaves the envelope: step, time, value, limit and law."""
+
+    step: int
+    """1-based step number; 0 for the final stop."""
+    time_s: float
+    """Time from the start of the recipe (s)."""
+    quantity: str
+    value: float
+    limit: float
+    message: str
+
+    def __str__(self) -> str:
+        where = "final stop" if self.step == 0 else f"step {self.step}"
+        return f"{where} at t = {self.time_s:.1f} s: {self.message}"
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """Where one step starts, how long it takes, and what it asks for."""
+
+    index: int
+    kind: str
+    start_s: float
+    duration_s: float
+    open_ended: bool
+    """True when the duration depends on the mill or the operator (pause, wait_furnace)."""
+    target: SpeedPoint
+    furnace_c: float | None
+    min_margin_rpm: float
+    trajectory: Trajectory | None = None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class RecipePlan:
+    """The whole pre-flighted recipe."""
+
+    steps: tuple[StepPlan, ...]
+    stop: Trajectory
+    violations: tuple[Violation, ...]
+    law: str
+    margin: float
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def ok(self) -> bool:
+        """True when no step leaves the envelope."""
+        return not self.violations
+
+    @property
+    def total_s(self) -> float:
+        """Total planned time (s), the final stop included; open-ended steps count as 0."""
+        return (self.steps[-1].start_s + self.steps[-1].duration_s if self.steps else 0.0) + self.stop.duration_s
+
+
+def _violations(step: int, t_s: float, verdict: Verdict) -> list[Violation]:
+    return [Violation(step, t_s, r.quantity, r.value, r.limit, r.reason) for r in verdict.refusals]
+
+
+class _Walker:
+    """Walks the steps, tracking setpoints and time, collecting violations."""
+
+    def __init__(self, recipe: Recipe, config: MillConfig) -> None:
+        self.recipe = recipe
+        self.envelope = Envelope.from_config(config)
+        self.planner = RampPlanner(self.envelope)
+        self.t_s = 0.0
+        self.point = STANDSTILL
+        self.furnace_c: float | None = None
+        self.ambient_c = config.furnace.ambient_temp_c
+        self.violations: list[Violation] = []
+        self.steps: list[StepPlan] = []
+
+    def ramp(self, index: int, step: RampStep) -> None:
+        defaults = self.recipe.defaults
+        rate_r = step.rotary_rate_rpm_s or defaults.rotary_rate_rpm_s
+        rate_v = step.vibration_rate_rpm_s or defaults.vibration_rate_rpm_s
+        target = self.planner.snap(SpeedPoint(step.rotary_rpm, step.vibration_rpm))
+        move: Trajectory | None = None
+        try:
+            if step.path == "linear":
+                move = self.planner.plan_linear(self.point, target, rate_r, rate_v)
+            else:
+                move = self.planner.plan(self.point, target, rate_r, rate_v)
+        except InterlockRefused as refused:
+            self.violations.extend(_violations(index, self.t_s, refused.verdict))
+            # report with the message that says where on a linear ramp it crossed
+            if step.path == "linear" and refused.verdict.refusals:
+                last = self.violations.pop()
+                self.violations.append(Violation(index, self.t_s, last.quantity, last.value, last.limit, str(refused)))
+        duration = move.duration_s if move is not None else 0.0
+        if step.furnace_c is not None:
+            duration = max(duration, self._furnace(index, step))
+        margin = move.min_margin_rpm(self.envelope) if move is not None else -math.inf
+        self.steps.append(
+            StepPlan(index, "ramp", self.t_s, duration, False, target, self.furnace_c, margin, move, step.note)
+        )
+        self.t_s += duration
+        self.point = target
+
+    def _furnace(self, index: int, step: RampStep) -> float:
+        assert step.furnace_c is not None
+        rate = step.heating_rate_c_per_min or self.recipe.defaults.heating_rate_c_per_min
+        rate = rate or self.envelope.max_heating_rate_c_per_min
+        self.violations.extend(_violations(index, self.t_s, self.envelope.check(0.0, 0.0, step.furnace_c)))
+        self.violations.extend(_violations(index, self.t_s, self.envelope.check_heating_rate(rate)))
+        start_c = self.ambient_c if self.furnace_c is None else self.furnace_c
+        self.furnace_c = step.furnace_c
+        return abs(step.furnace_c - start_c) / rate * 60.0
+
+    def fixed(self, index: int, kind: str, duration_s: float, open_ended: bool, note: str) -> None:
+        margin = float(self.envelope.check(self.point.omega_r_rpm, self.point.omega_v_rpm).margin_rpm)
+        if self.point.omega_r_rpm == 0.0:
+            margin = math.inf
+        self.steps.append(
+            StepPlan(index, kind, self.t_s, duration_s, open_ended, self.point, self.furnace_c, margin, None, note)
+        )
+        self.t_s += duration_s
+
+    def walk(self) -> RecipePlan:
+        for index, step in enumerate(self.recipe.steps, start=1):
+            if isinstance(step, RampStep):
+                self.ramp(index, step)
+            elif isinstance(step, HoldStep):
+                self.fixed(index, "hold", step.seconds, False, step.note)
+            elif isinstance(step, WaitFurnaceStep):
+                if self.furnace_c is None:
+                    self.violations.append(
+                        Violation(
+                            index,
+                            self.t_s,
+                            "furnace_temp",
+                            math.nan,
+                            math.nan,
+                            "wait_furnace with no furnace setpoint: an earlier ramp must set furnace_c",
+                        )
+                    )
+                self.fixed(index, "wait_furnace", 0.0, True, step.note or f"until within ±{step.band_c} °C")
+            elif isinstance(step, PauseStep):
+                self.fixed(index, "pause", 0.0, True, step.message)
+        stop = self.planner.plan_stop(self.point)
+        return RecipePlan(
+            steps=tuple(self.steps),
+            stop=stop,
+            violations=tuple(self.violations),
+            law=self.envelope.law.value,
+            margin=self.envelope.margin,
+        )
+
+
+def plan_recipe(recipe: Recipe, config: MillConfig) -> RecipePlan:
+    """Pre-flight a recipe against a configured mill: timeline, margins and every violation."""
+    return _Walker(recipe, config).walk()
+
+
+__all__ = ["RecipePlan", "StepPlan", "Violation", "plan_recipe"]
