@@ -1,17 +1,5 @@
-"""The controller: state machine, ramp planner, heartbeat and telemetry tracking."""
+"""The controller: state machine, heartbeat, telemetry tracking and the interlock in action."""
 
-from millctl.controller.planner import STANDSTILL, RampPlanner, Segment, SpeedPoint, Trajectory
 from millctl.controller.states import TRANSITIONS, ControllerState, IllegalTransition, StateMachine, Transition
 
-__all__ = [
-    "STANDSTILL",
-    "TRANSITIONS",
-    "ControllerState",
-    "IllegalTransition",
-    "RampPlanner",
-    "Segment",
-    "SpeedPoint",
-    "StateMachine",
-    "Trajectory",
-    "Transition",
-]
+__all__ = ["TRANSITIONS", "ControllerState", "IllegalTransition", "StateMachine", "Transition"]

@@ -1,6 +1,6 @@
 """Pre-flight a recipe: the timeline of every step, and every place it would leave the envelope.
 
-The same :class:`~millctl.controller.planner.RampPlanner` and
+The same :class:`~millctl.safety.ramps.RampPlanner` and
 :class:`~millctl.safety.Envelope` that run the mill check the whole planned
 trajectory here, ramps and the final stop included, so that a recipe that
 passes ``millctl recipe check`` is one the controller will not refuse.
@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass, field
 
 from millctl.config.models import MillConfig
-from millctl.controller.planner import STANDSTILL, RampPlanner, SpeedPoint, Trajectory
 from millctl.recipes.schema import HoldStep, PauseStep, RampStep, Recipe, WaitFurnaceStep
 from millctl.safety import Envelope, InterlockRefused, Verdict
+from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint, Trajectory
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from millctl.config import LimitLaw
-from millctl.controller.planner import STANDSTILL, RampPlanner, SpeedPoint
 from millctl.safety import Envelope, InterlockRefused
+from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint
 
 
 def envelope_for(config, law: LimitLaw) -> Envelope:
@@ -105,3 +105,12 @@ def test_linear_ramp_inside_is_one_segment(planner):
     move = planner.plan_linear(SpeedPoint(100.0, 600.0), SpeedPoint(150.0, 800.0))
     assert len(move.segments) == 1
     assert move.duration_s == pytest.approx(max(50.0 / 40.0, 200.0 / 120.0))
+
+
+def test_settle_dwell_between_one_axis_ramps(config):
+    planner = RampPlanner(Envelope.from_config(config), settle_s=1.0)
+    move = planner.plan(STANDSTILL, SpeedPoint(180.0, 800.0))
+    _, dwell, _ = move.segments
+    assert dwell.start == dwell.end == SpeedPoint(0.0, 800.0)
+    assert dwell.t1_s - dwell.t0_s == 1.0
+    assert move.duration_s == pytest.approx(800.0 / 120.0 + 1.0 + 180.0 / 40.0)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from millctl.safety import Envelope, InterlockRefused, Verdict
+from millctl.safety.envelope import Envelope, InterlockRefused, Verdict
 
 INTERIOR_GRID = 65
 """Points at which the limit is also checked inside an ω_v sweep."""
@@ -112,11 +112,15 @@ class Trajectory:
 class RampPlanner:
     """Plans moves and stops inside one envelope, on the wire's speed grid."""
 
-    def __init__(self, envelope: Envelope, resolution_rpm: float = 0.1) -> None:
+    def __init__(self, envelope: Envelope, resolution_rpm: float = 0.1, settle_s: float = 0.0) -> None:
         if not resolution_rpm > 0.0:
             raise ValueError(f"resolution_rpm = {resolution_rpm} must be > 0")
+        if not settle_s >= 0.0:
+            raise ValueError(f"settle_s = {settle_s} must be ≥ 0")
         self.envelope = envelope
         self.resolution_rpm = resolution_rpm
+        self.settle_s = settle_s
+        """Dwell after each one-axis ramp, so that a lagging drive reaches the corner first (s)."""
 
     def snap(self, point: SpeedPoint) -> SpeedPoint:
         """Round a pair onto the wire grid (what the node will receive)."""
@@ -164,14 +168,16 @@ class RampPlanner:
         if a.omega_v_rpm != b.omega_v_rpm:
             r_low = min(r_low, self._floor(self.lowest_limit_rpm(a.omega_v_rpm, b.omega_v_rpm)))
         corners = [a, SpeedPoint(r_low, a.omega_v_rpm), SpeedPoint(r_low, b.omega_v_rpm), b]
+        corners = [p for i, p in enumerate(corners) if i == 0 or p != corners[i - 1]]
         segments: list[Segment] = []
         t = 0.0
-        for p, q in itertools.pairwise(corners):
-            if p == q:
-                continue
+        for i, (p, q) in enumerate(itertools.pairwise(corners)):
             duration = abs(q.omega_r_rpm - p.omega_r_rpm) / rate_r + abs(q.omega_v_rpm - p.omega_v_rpm) / rate_v
             segments.append(Segment(t, t + duration, p, q))
             t += duration
+            if self.settle_s > 0.0 and i < len(corners) - 2:
+                segments.append(Segment(t, t + self.settle_s, q, q))
+                t += self.settle_s
         return Trajectory(a, b, tuple(segments))
 
     def plan_linear(
