@@ -1,0 +1,192 @@
+"""End-to-end protection, AUTOSAR E2E profile 1 style (SAFETY.md item 3).
+
+Every E2E-protected frame carries, in byte 0, a CRC8 and, in the low nibble
+of byte 1, a 4-bit alive counter that the sender advances by one per frame
+(0…15, wrapping; unlike profile 1 the value 15 is used too).
+
+The CRC is CRC-8/SAE-J1850: polynomial 0x1D, initial value 0xFF, final XOR
+0xFF, no reflection (check value 0x4B for ``b"123456789"``). It runs over the
+message's 16-bit data ID (``E2EDataID`` in the DBC; low byte, then high
+byte, as profile 1's "both bytes" mode) and then the payload without the CRC
+byte, so a frame that arrives under a wrong identifier fails its CRC.
+
+A receiver keeps one :class:`E2EReceiver` per message: it classifies every
+frame and keeps a net error score (+1 per error, −1 per good frame, never
+below 0); the link is faulted while the score is at or above the limit
+(``interlock.e2e_error_limit``). Only ``OK`` and ``OK_SOME_LOST`` frames are
+fresh; a repeated or out-of-sequence counter never counts as a heartbeat.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Protocol
+
+CRC8_POLY = 0x1D
+CRC8_INIT = 0xFF
+CRC8_XOR_OUT = 0xFF
+COUNTER_MODULO = 16
+DEFAULT_MAX_DELTA = 3
+"""Largest counter step still accepted as "some frames lost" (profile 1's MaxDeltaCounter)."""
+
+
+def _table() -> tuple[int, ...]:
+    rows = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ CRC8_POLY) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        rows.append(crc)
+    return tuple(rows)
+
+
+_TABLE = _table()
+
+
+def crc8_sae_j1850(data: bytes, start: int = CRC8_INIT, xor_out: int = CRC8_XOR_OUT) -> int:
+    """CRC-8/SAE-J1850 of ``data`` (poly 0x1D, init 0xFF, xorout 0xFF unless given)."""
+    crc = start
+    for byte in data:
+        crc = _TABLE[crc ^ byte]
+    return crc ^ xor_out
+
+
+def e2e_crc(data_id: int, payload_without_crc: bytes) -> int:
+    """The E2E CRC8 over the data ID (low byte, high byte) and the payload without its CRC byte."""
+    if not 0 <= data_id <= 0xFFFF:
+        raise ValueError(f"E2E data ID {data_id} is outside 0 … 65535")
+    return crc8_sae_j1850(bytes((data_id & 0xFF, data_id >> 8)) + payload_without_crc)
+
+
+class AliveCounter:
+    """A sender's 4-bit alive counter: ``next()`` returns the value for the next frame, then advances."""
+
+    def __init__(self, start: int = 0) -> None:
+        if not 0 <= start < COUNTER_MODULO:
+            raise ValueError(f"alive counter start {start} is outside 0 … {COUNTER_MODULO - 1}")
+        self._value = start
+
+    @property
+    def value(self) -> int:
+        """The value the next frame will carry."""
+        return self._value
+
+    def next(self) -> int:
+        """Return the counter for this frame and advance (15 wraps to 0)."""
+        value = self._value
+        self._value = (value + 1) % COUNTER_MODULO
+        return value
+
+
+class E2EStatus(enum.Enum):
+    """Classification of one received E2E frame."""
+
+    OK = "ok"
+    """Counter advanced by exactly one (or first frame after start/resync)."""
+    OK_SOME_LOST = "ok-some-lost"
+    """Counter advanced by 2 … max_delta: some frames were lost, this one is fresh."""
+    REPEATED = "repeated"
+    """Same counter as the last accepted frame: not fresh."""
+    WRONG_SEQUENCE = "wrong-sequence"
+    """Counter jumped by more than max_delta (or went back): not fresh; the receiver resynchronises."""
+    WRONG_CRC = "wrong-crc"
+    """The CRC does not match: the frame is discarded."""
+
+    @property
+    def fresh(self) -> bool:
+        """True when the frame's data may be used and may feed a watchdog."""
+        return self in (E2EStatus.OK, E2EStatus.OK_SOME_LOST)
+
+    @property
+    def is_error(self) -> bool:
+        """True when the frame adds to the error score."""
+        return self in (E2EStatus.REPEATED, E2EStatus.WRONG_SEQUENCE, E2EStatus.WRONG_CRC)
+
+
+class _HasE2E(Protocol):
+    """What the checker reads of :class:`millctl.protocol.codec.Decoded` (avoids an import cycle)."""
+
+    @property
+    def counter(self) -> int | None: ...
+
+    @property
+    def crc_ok(self) -> bool: ...
+
+
+@dataclass
+class E2EReceiver:
+    """Receiver-side checker for one E2E-protected message (one instance per identifier).
+
+    ``check`` takes the CRC verdict and counter of a decoded frame
+    (:class:`millctl.protocol.codec.Decoded` has both) and returns its
+    :class:`E2EStatus`, updating the error score.
+    """
+
+    error_limit: int
+    """Net error score at which the link is faulted (``interlock.e2e_error_limit``)."""
+    max_delta: int = DEFAULT_MAX_DELTA
+    name: str = ""
+    """What this receiver guards, for messages (e.g. the message name)."""
+    score: int = field(default=0, init=False)
+    last_counter: int | None = field(default=None, init=False)
+    counts: dict[E2EStatus, int] = field(default_factory=lambda: dict.fromkeys(E2EStatus, 0), init=False)
+
+    def __post_init__(self) -> None:
+        if self.error_limit < 1:
+            raise ValueError(f"E2E error limit {self.error_limit} must be ≥ 1")
+        if not 1 <= self.max_delta < COUNTER_MODULO - 1:
+            raise ValueError(f"E2E max_delta {self.max_delta} must be in 1 … {COUNTER_MODULO - 2}")
+
+    @property
+    def faulted(self) -> bool:
+        """True while the net error score is at or above the limit."""
+        return self.score >= self.error_limit
+
+    def classify(self, counter: int | None, crc_ok: bool) -> E2EStatus:
+        """Classify one frame by its CRC verdict and alive counter, and update the score."""
+        if not crc_ok or counter is None or not 0 <= counter < COUNTER_MODULO:
+            status = E2EStatus.WRONG_CRC
+        elif self.last_counter is None:
+            status = E2EStatus.OK
+        else:
+            delta = (counter - self.last_counter) % COUNTER_MODULO
+            if delta == 0:
+                status = E2EStatus.REPEATED
+            elif delta == 1:
+                status = E2EStatus.OK
+            elif delta <= self.max_delta:
+                status = E2EStatus.OK_SOME_LOST
+            else:
+                status = E2EStatus.WRONG_SEQUENCE
+        if status is not E2EStatus.WRONG_CRC and status is not E2EStatus.REPEATED:
+            self.last_counter = counter
+        self.counts[status] += 1
+        if status.is_error:
+            self.score += 1
+        elif status is E2EStatus.OK:
+            self.score = max(0, self.score - 1)
+        return status
+
+    def check(self, decoded: _HasE2E) -> E2EStatus:
+        """Classify a decoded frame (anything with ``counter`` and ``crc_ok``)."""
+        return self.classify(decoded.counter, decoded.crc_ok)
+
+    def reset(self) -> None:
+        """Forget the last counter and the score (e.g. after an explicit RESET of the link)."""
+        self.score = 0
+        self.last_counter = None
+
+
+__all__ = [
+    "COUNTER_MODULO",
+    "CRC8_INIT",
+    "CRC8_POLY",
+    "CRC8_XOR_OUT",
+    "DEFAULT_MAX_DELTA",
+    "AliveCounter",
+    "E2EReceiver",
+    "E2EStatus",
+    "crc8_sae_j1850",
+    "e2e_crc",
+]

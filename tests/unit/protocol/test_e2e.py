@@ -1,0 +1,113 @@
+"""E2E protection: CRC known answers, the alive counter, and the receiver-side checker."""
+
+from __future__ import annotations
+
+import pytest
+
+from millctl.config import MillConfig
+from millctl.protocol import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
+
+# AUTOSAR SWS CRC Library, CRC8 (SAE J1850) examples, and the CRC catalogue's check value.
+KNOWN_ANSWERS = [
+    ("00000000", 0x59),
+    ("F20183", 0x37),
+    ("0FAA0055", 0x79),
+    ("00FF5511", 0xB8),
+    ("332255AABBCCDDEEFF", 0xCB),
+    ("926B55", 0x8C),
+    ("FFFFFFFF", 0x74),
+    ("313233343536373839", 0x4B),  # b"123456789"
+]
+
+
+@pytest.mark.parametrize(("hex_data", "expected"), KNOWN_ANSWERS)
+def test_crc8_sae_j1850_known_answers(hex_data: str, expected: int) -> None:
+    assert crc8_sae_j1850(bytes.fromhex(hex_data)) == expected
+
+
+def test_e2e_crc_covers_data_id_low_then_high_then_payload() -> None:
+    payload = bytes.fromhex("05A00FE02E1C25")
+    assert e2e_crc(0x4D30, payload) == crc8_sae_j1850(bytes((0x30, 0x4D)) + payload)
+    assert e2e_crc(0x4D30, payload) != e2e_crc(0x4D20, payload)
+    assert e2e_crc(0x304D, payload) != e2e_crc(0x4D30, payload)
+    with pytest.raises(ValueError, match="data ID"):
+        e2e_crc(0x1_0000, payload)
+
+
+def test_alive_counter_wraps_after_15() -> None:
+    counter = AliveCounter(start=14)
+    assert [counter.next() for _ in range(4)] == [14, 15, 0, 1]
+    assert counter.value == 2
+    with pytest.raises(ValueError):
+        AliveCounter(start=16)
+
+
+def classify_all(receiver: E2EReceiver, counters: list[int | None]) -> list[E2EStatus]:
+    return [receiver.classify(c, crc_ok=c is not None) for c in counters]
+
+
+def test_in_sequence_and_wrap_around_are_ok() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    statuses = classify_all(receiver, [12, 13, 14, 15, 0, 1, 2])
+    assert statuses == [E2EStatus.OK] * 7
+    assert receiver.score == 0
+
+
+def test_loss_within_max_delta_is_fresh_but_larger_jump_is_not() -> None:
+    receiver = E2EReceiver(error_limit=5, max_delta=3)
+    assert classify_all(receiver, [14, 1, 4]) == [E2EStatus.OK, E2EStatus.OK_SOME_LOST, E2EStatus.OK_SOME_LOST]
+    status = receiver.classify(9, crc_ok=True)
+    assert status is E2EStatus.WRONG_SEQUENCE
+    assert not status.fresh
+    # The receiver resynchronises on the new counter: the next one in sequence is fresh again.
+    assert receiver.classify(10, crc_ok=True) is E2EStatus.OK
+
+
+def test_repetition_and_going_back_never_count_as_fresh() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    statuses = classify_all(receiver, [3, 3, 3, 2])
+    assert statuses[0] is E2EStatus.OK
+    assert statuses[1:3] == [E2EStatus.REPEATED, E2EStatus.REPEATED]
+    assert statuses[3] is E2EStatus.WRONG_SEQUENCE  # 3 -> 2 is a step of 15
+    assert [s.fresh for s in statuses] == [True, False, False, False]
+
+
+def test_corruption_is_wrong_crc_and_does_not_move_the_counter() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    assert receiver.classify(7, crc_ok=True) is E2EStatus.OK
+    assert receiver.classify(8, crc_ok=False) is E2EStatus.WRONG_CRC
+    assert receiver.classify(8, crc_ok=True) is E2EStatus.OK
+    assert receiver.counts[E2EStatus.WRONG_CRC] == 1
+
+
+def test_net_error_score_faults_the_link_at_the_configured_limit_and_recovers(config: MillConfig) -> None:
+    limit = config.interlock.e2e_error_limit
+    receiver = E2EReceiver(error_limit=limit)
+    receiver.classify(0, crc_ok=True)
+    for _ in range(limit - 1):
+        receiver.classify(None, crc_ok=False)
+    assert receiver.score == limit - 1
+    assert not receiver.faulted
+    receiver.classify(0, crc_ok=True)  # repeated: an error too
+    assert receiver.faulted
+    receiver.classify(1, crc_ok=True)
+    assert not receiver.faulted
+    for counter in range(2, 2 + limit):
+        receiver.classify(counter, crc_ok=True)
+    assert receiver.score == 0
+
+
+def test_alternating_errors_and_good_frames_do_not_accumulate() -> None:
+    receiver = E2EReceiver(error_limit=3)
+    counter = AliveCounter()
+    for _ in range(50):
+        receiver.classify(counter.next(), crc_ok=True)
+        receiver.classify(None, crc_ok=False)
+    assert not receiver.faulted
+
+
+def test_receiver_rejects_nonsense_limits() -> None:
+    with pytest.raises(ValueError):
+        E2EReceiver(error_limit=0)
+    with pytest.raises(ValueError):
+        E2EReceiver(error_limit=5, max_delta=15)
