@@ -1,0 +1,414 @@
+"""The controller: makes the mill do what the operator asks, and never what the interlock forbids.
+
+It owns the heartbeat (its counter advanced by :meth:`Controller.tick`, the
+control loop itself, so a hung controller stops the heartbeat), tracks every
+node frame with its age, and applies the interlock through
+:mod:`millctl.safety`: setpoints outside the envelope are refused, moves are
+planned ramps inside it, measured speeds are checked each tick, stale
+telemetry and node faults trip, and trips latch until :meth:`Controller.reset`.
+Steppable with an injected clock: :meth:`tick` never sleeps.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import can
+
+from millctl.clock import Clock
+from millctl.config.models import MillConfig
+from millctl.controller.events import Event, EventKind, EventListener
+from millctl.controller.monitor import MeasuredSpeedMonitor
+from millctl.controller.states import ControllerState, StateMachine, Transition
+from millctl.controller.status import Status, build_status
+from millctl.controller.tracking import TelemetryTracker
+from millctl.errors import InterlockError
+from millctl.protocol import (
+    ESTOP_ID,
+    AliveCounter,
+    Codec,
+    Command,
+    CommandCode,
+    DriveTelemetry,
+    EStop,
+    EStopSource,
+    FaultCode,
+    FurnaceTelemetry,
+    Heartbeat,
+    MillMessage,
+    NodeState,
+    NodeStatus,
+    ProtocolError,
+    Setpoints,
+    default_codec,
+)
+from millctl.protocol import ControllerState as WireState
+from millctl.safety import STANDSTILL, Envelope, InterlockRefused, RampPlanner, SpeedPoint, Trajectory
+
+log = logging.getLogger(__name__)
+
+S = ControllerState
+
+_WIRE_STATE = {
+    S.DISCONNECTED: WireState.INIT,
+    S.DISABLED: WireState.IDLE,
+    S.ARMED: WireState.ARMED,
+    S.RUNNING: WireState.RUNNING,
+    S.STOPPING: WireState.STOPPING,
+    S.TRIPPED: WireState.TRIPPED,
+}
+
+STANDSTILL_RPM = 1.0
+"""Measured speeds below this count as standstill (rpm)."""
+
+SETTLE_TIME_CONSTANTS = 5.0
+"""The planner dwells this many drive time constants between one-axis ramps."""
+
+
+class CommandRefused(InterlockError):
+    """A command that the current state does not allow; nothing was sent."""
+
+
+class Controller:
+    """The mill's controller on one bus, stepped by :meth:`tick`."""
+
+    def __init__(
+        self,
+        config: MillConfig,
+        bus: can.BusABC,
+        clock: Clock,
+        *,
+        codec: Codec | None = None,
+        listener: EventListener | None = None,
+    ) -> None:
+        self.config = config
+        self.bus = bus
+        self.clock = clock
+        self.codec = codec or default_codec()
+        self.listener = listener
+        self.envelope = Envelope.from_config(config)
+        settle_s = SETTLE_TIME_CONSTANTS * max(
+            config.drives.rotary.time_constant_s, config.drives.vibration.time_constant_s
+        )
+        self.planner = RampPlanner(self.envelope, settle_s=settle_s)
+        self.machine = StateMachine(clock.now, self._on_transition)
+        self.tracker = TelemetryTracker(self.codec, config.interlock)
+        self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
+        self._counters: dict[type[MillMessage], AliveCounter] = {
+            kind: AliveCounter() for kind in (Heartbeat, Setpoints, Command)
+        }
+        self.commanded = STANDSTILL
+        self.trajectory: Trajectory | None = None
+        self._trajectory_start_s = 0.0
+        self.furnace_target_c: float | None = None
+        self.furnace_setpoint_c = config.furnace.ambient_temp_c
+        self.heating_rate_c_per_min = config.furnace.max_heating_rate_c_per_min
+        self.trip_cause = ""
+        self._reset_pending = False
+        self._disarm_pending = False
+        self._last_tick_s = clock.now()
+        self._next_heartbeat_s = clock.now()
+        self._next_setpoints_s = clock.now()
+        self.invalid_frames = 0
+        self.foreign_estops = 0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def state(self) -> ControllerState:
+        """The controller's state."""
+        return self.machine.state
+
+    @property
+    def node_status(self) -> NodeStatus | None:
+        """The freshest NodeStatus, or None before the first."""
+        last = self.tracker.tracks[NodeStatus].last
+        return last if isinstance(last, NodeStatus) else None
+
+    @property
+    def measured(self) -> DriveTelemetry | None:
+        """The freshest measured drive speeds, or None before the first."""
+        last = self.tracker.tracks[DriveTelemetry].last
+        return last if isinstance(last, DriveTelemetry) else None
+
+    @property
+    def furnace(self) -> FurnaceTelemetry | None:
+        """The freshest furnace telemetry, or None before the first."""
+        last = self.tracker.tracks[FurnaceTelemetry].last
+        return last if isinstance(last, FurnaceTelemetry) else None
+
+    def status(self) -> Status:
+        """A snapshot of everything an operator needs to see."""
+        return build_status(self)
+
+    def _emit(self, kind: EventKind, source: str, message: str, **data: object) -> None:
+        event = Event(self.clock.now(), kind, source, message, dict(data))
+        log.info("%s [%s] %s", kind, source, message)
+        if self.listener is not None:
+            self.listener(event)
+
+    def _on_transition(self, transition: Transition) -> None:
+        self._emit(
+            EventKind.STATE,
+            "controller",
+            f"{transition.source} → {transition.target}: {transition.reason}",
+            source_state=str(transition.source),
+            target_state=str(transition.target),
+            reason=transition.reason,
+        )
+
+    # ------------------------------------------------------------------ wire
+    def _send(self, message: MillMessage) -> None:
+        counter = self._counters[type(message)].next() if type(message) in self._counters else 0
+        frame = self.codec.encode(message, counter)
+        try:
+            self.bus.send(frame)
+        except can.CanError as exc:
+            log.warning("bus send failed for %s: %s", type(message).__name__, exc)
+
+    def _command(self, code: CommandCode, source: str, reason: str) -> None:
+        self._send(Command(code))
+        self._emit(EventKind.COMMAND, source, f"{code.name}: {reason}", command=code.name)
+
+    # ------------------------------------------------------------------ operator commands
+    def _require(self, allowed: set[ControllerState], what: str, source: str) -> None:
+        if self.state not in allowed:
+            reason = f"{what} is not possible in state {self.state} (possible in {', '.join(sorted(allowed))})"
+            if self.state is S.TRIPPED:
+                reason += f"; tripped by: {self.trip_cause} — reset first"
+            self._emit(EventKind.REFUSAL, source, reason)
+            raise CommandRefused(reason)
+
+    def arm(self, source: str = "operator") -> None:
+        """Ask the node to arm (from DISABLED, with a live heartbeat)."""
+        self._require({S.DISABLED}, "arm", source)
+        self._command(CommandCode.ARM, source, "operator request")
+
+    def disarm(self, source: str = "operator") -> None:
+        """Ask the node to disarm (from ARMED at standstill)."""
+        self._require({S.ARMED}, "disarm", source)
+        if self.commanded != STANDSTILL or self.trajectory is not None:
+            self._refuse(source, "disarm needs both setpoints at 0: stop first")
+        self._disarm_pending = True
+        self._command(CommandCode.DISARM, source, "operator request")
+
+    def _refuse(self, source: str, reason: str) -> None:
+        self._emit(EventKind.REFUSAL, source, reason)
+        raise CommandRefused(reason)
+
+    def set_speeds(
+        self,
+        rotary_rpm: float,
+        vibration_rpm: float,
+        *,
+        rotary_rate_rpm_s: float | None = None,
+        vibration_rate_rpm_s: float | None = None,
+        linear: bool = False,
+        source: str = "operator",
+    ) -> Trajectory:
+        """Plan a ramp to new speeds and start it; refuse (nothing sent) when it would leave the envelope."""
+        self._require({S.ARMED, S.RUNNING}, "set speeds", source)
+        target = SpeedPoint(rotary_rpm, vibration_rpm)
+        try:
+            if linear:
+                move = self.planner.plan_linear(self.commanded, target, rotary_rate_rpm_s, vibration_rate_rpm_s)
+            else:
+                move = self.planner.plan(self.commanded, target, rotary_rate_rpm_s, vibration_rate_rpm_s)
+        except InterlockRefused as refused:
+            self._emit(EventKind.REFUSAL, source, str(refused), rotary_rpm=rotary_rpm, vibration_rpm=vibration_rpm)
+            raise
+        self.trajectory = move
+        self._trajectory_start_s = self.clock.now()
+        self._emit(
+            EventKind.COMMAND,
+            source,
+            f"ramp to ω_r = {move.end.omega_r_rpm:.1f} rpm, ω_v = {move.end.omega_v_rpm:.1f} rpm "
+            f"over {move.duration_s:.1f} s",
+            rotary_rpm=move.end.omega_r_rpm,
+            vibration_rpm=move.end.omega_v_rpm,
+            duration_s=move.duration_s,
+        )
+        return move
+
+    def set_furnace(
+        self, temp_c: float | None, *, rate_c_per_min: float | None = None, source: str = "operator"
+    ) -> None:
+        """Set the furnace target (ramped at the heating rate); None turns the heater off."""
+        if temp_c is None:
+            self.furnace_target_c = None
+            self._emit(EventKind.COMMAND, source, "heater off")
+            return
+        self._require({S.ARMED, S.RUNNING}, "set the furnace", source)
+        rate = self.config.furnace.max_heating_rate_c_per_min if rate_c_per_min is None else rate_c_per_min
+        for verdict in (self.envelope.check(0.0, 0.0, temp_c), self.envelope.check_heating_rate(rate)):
+            if not verdict.ok:
+                self._emit(EventKind.REFUSAL, source, verdict.reason(), temp_c=temp_c)
+                raise InterlockRefused(verdict, "furnace setpoint")
+        if self.furnace_target_c is None:  # ramp from where the furnace is
+            furnace = self.furnace
+            self.furnace_setpoint_c = furnace.temp_c if furnace is not None else self.config.furnace.ambient_temp_c
+        self.furnace_target_c = temp_c
+        self.heating_rate_c_per_min = rate
+        self._emit(EventKind.COMMAND, source, f"furnace to {temp_c:.1f} °C at {rate:.1f} °C/min", temp_c=temp_c)
+
+    def stop(self, source: str = "operator", reason: str = "operator request") -> None:
+        """Controlled stop (category 1): the node ramps both drives down inside the envelope, heater off."""
+        self._require({S.ARMED, S.RUNNING, S.STOPPING}, "stop", source)
+        self._begin_stop(source, reason)
+
+    def _begin_stop(self, source: str, reason: str) -> None:
+        self.trajectory = None
+        self.furnace_target_c = None
+        self._command(CommandCode.STOP, source, reason)
+        if self.machine.can_go(S.STOPPING):
+            self.machine.go(S.STOPPING, f"{source}: {reason}")
+        self.commanded = STANDSTILL
+
+    def estop(self, source: str = "operator") -> None:
+        """Emergency stop: the E-stop frame at the highest priority, then a latched trip."""
+        self._send(EStop(EStopSource.OPERATOR if source != "controller" else EStopSource.CONTROLLER))
+        self._emit(EventKind.COMMAND, source, "E-STOP")
+        self._trip(f"E-stop by {source}", source)
+
+    def reset(self, source: str = "operator") -> None:
+        """Clear a latched trip: only with fresh telemetry and both drives at standstill."""
+        self._require({S.TRIPPED}, "reset", source)
+        now = self.clock.now()
+        stale = self.tracker.stale(now)
+        if stale:
+            self._refuse(source, f"reset refused: {'; '.join(stale)}")
+        measured = self.measured
+        if measured is None or max(abs(measured.rotary_rpm), abs(measured.vibration_rpm)) > STANDSTILL_RPM:
+            shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
+            self._refuse(source, f"reset refused: drives not at standstill (measured {shown})")
+        self.tracker.reset_links()
+        self.monitor.reset()
+        self._reset_pending = True
+        node = self.node_status
+        if node is not None and node.state is NodeState.FAULT:
+            self._command(CommandCode.RESET, source, f"clear latched trip: {self.trip_cause}")
+        elif node is not None and node.state is NodeState.ARMED:
+            self._command(CommandCode.DISARM, source, "reset: back to DISABLED")
+        self._emit(EventKind.COMMAND, source, "reset requested")
+
+    # ------------------------------------------------------------------ trips
+    def _trip(self, cause: str, source: str = "interlock") -> None:
+        if self.state is S.TRIPPED:
+            return
+        self.trip_cause = cause
+        self._reset_pending = False
+        self._emit(EventKind.TRIP, source, cause)
+        self.trajectory = None
+        self.furnace_target_c = None
+        self._command(CommandCode.STOP, "interlock", f"trip: {cause}")
+        self.commanded = STANDSTILL
+        self.machine.go(S.TRIPPED, cause)
+
+    # ------------------------------------------------------------------ the control loop
+    def tick(self) -> None:
+        """One control step: read the bus, check everything, advance the ramp, send what is due."""
+        now = self.clock.now()
+        dt = max(now - self._last_tick_s, 0.0)
+        self._last_tick_s = now
+        self._drain(now)
+        self._check(now)
+        self._advance(now, dt)
+        self._transmit(now)
+
+    def _drain(self, now: float) -> None:
+        while True:
+            frame = self.bus.recv(timeout=0.0)
+            if frame is None:
+                return
+            if frame.arbitration_id == ESTOP_ID and not frame.is_extended_id:
+                self.foreign_estops += 1
+                continue  # the node trips on it and reports; we see it in NodeStatus
+            try:
+                decoded = self.codec.decode(frame)
+            except ProtocolError as exc:
+                self.invalid_frames += 1
+                log.debug("ignored frame: %s", exc)
+                continue
+            message = self.tracker.accept(decoded, now)
+            if isinstance(message, NodeStatus):
+                self._on_node_status(message)
+            elif isinstance(message, DriveTelemetry):
+                self._on_measured(message)
+
+    def _on_node_status(self, status: NodeStatus) -> None:
+        state, node = self.state, status.state
+        if node is NodeState.FAULT:
+            if state is S.TRIPPED:
+                return
+            cause = FaultCode(status.first_fault).name
+            self._trip(f"node fault {cause} (fault bits {status.fault_bits!r})", "node")
+            return
+        if state is S.DISCONNECTED:
+            if node is NodeState.DISABLED:
+                self.machine.go(S.DISABLED, "node seen, DISABLED")
+            else:
+                self._trip(f"node found in state {node.name} at connect: expected DISABLED", "node")
+        elif state is S.DISABLED and node is NodeState.ARMED:
+            self.machine.go(S.ARMED, "node ARMED")
+        elif state is S.ARMED and node is NodeState.RUNNING:
+            self.machine.go(S.RUNNING, "node RUNNING")
+        elif state is S.STOPPING and node is NodeState.ARMED:
+            self.machine.go(S.ARMED, "controlled stop complete")
+        elif state is S.ARMED and node is NodeState.DISABLED and self._disarm_pending:
+            self._disarm_pending = False
+            self.machine.go(S.DISABLED, "node DISABLED (disarmed)")
+        elif state in (S.ARMED, S.RUNNING, S.STOPPING) and node is NodeState.DISABLED:
+            self._trip(f"node reports DISABLED while the controller is {state}: the node restarted", "node")
+        elif state is S.TRIPPED and self._reset_pending and node is NodeState.DISABLED and not status.fault_bits:
+            self._reset_pending = False
+            self.trip_cause = ""
+            self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
+
+    def _on_measured(self, measured: DriveTelemetry) -> None:
+        if self.state in (S.DISCONNECTED, S.TRIPPED):
+            return
+        reason = self.monitor.update(measured.rotary_rpm, measured.vibration_rpm)
+        if reason is not None:
+            self._trip(reason)
+
+    def _check(self, now: float) -> None:
+        if self.state is S.DISCONNECTED:
+            return
+        problems = self.tracker.stale(now) + self.tracker.link_faults()
+        if problems and self.state is not S.TRIPPED:
+            self._trip("; ".join(problems))
+
+    def _advance(self, now: float, dt: float) -> None:
+        if self.trajectory is not None:
+            elapsed = now - self._trajectory_start_s
+            self.commanded = self.trajectory.at(elapsed)
+            if elapsed >= self.trajectory.duration_s:
+                self.commanded = self.trajectory.end
+                self.trajectory = None
+        if self.furnace_target_c is not None:
+            step = self.heating_rate_c_per_min / 60.0 * dt
+            delta = self.furnace_target_c - self.furnace_setpoint_c
+            self.furnace_setpoint_c += math.copysign(min(abs(delta), step), delta)
+
+    def _transmit(self, now: float) -> None:
+        if now >= self._next_heartbeat_s:
+            self._send(Heartbeat(_WIRE_STATE[self.state]))
+            self._next_heartbeat_s = max(self._next_heartbeat_s + self.config.timing.heartbeat_period_s, now)
+        if now >= self._next_setpoints_s:
+            self._next_setpoints_s = max(self._next_setpoints_s + self.config.timing.setpoint_period_s, now)
+            if self.state in (S.ARMED, S.RUNNING):
+                heater_on = self.furnace_target_c is not None
+                snapped = self.planner.snap(self.commanded)
+                self._send(
+                    Setpoints(
+                        rotary_rpm=snapped.omega_r_rpm,
+                        vibration_rpm=snapped.omega_v_rpm,
+                        furnace_c=round(self.furnace_setpoint_c, 1)
+                        if heater_on
+                        else self.config.furnace.ambient_temp_c,
+                        heater_on=heater_on,
+                    )
+                )
+
+
+__all__ = ["STANDSTILL_RPM", "CommandRefused", "Controller"]

@@ -1,0 +1,150 @@
+"""The controller against a scripted node: heartbeat, interlock, trips, latching, reset."""
+
+from __future__ import annotations
+
+import pytest
+
+from millctl.controller import CommandRefused, ControllerState, EventKind
+from millctl.protocol import Command, CommandCode, Heartbeat, NodeState, Setpoints
+from millctl.safety import InterlockRefused
+from tests.unit.controller.bench import ScriptedNode
+
+S = ControllerState
+
+
+@pytest.fixture
+def bench(config):
+    b = ScriptedNode(config)
+    yield b
+    b.close()
+
+
+def armed(bench: ScriptedNode) -> ScriptedNode:
+    bench.run(0.2, state=NodeState.DISABLED)
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    assert bench.controller.state is S.ARMED
+    return bench
+
+
+def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench):
+    bench.run(1.0)
+    beats = bench.of(Heartbeat)
+    assert len(beats) == 20
+    counters = [d.counter for _, d in beats]
+    assert counters == [i % 16 for i in range(20)]
+    # no tick, no heartbeat: a hung loop stops the heartbeat
+    bench.clock.advance(1.0)
+    bench.collect()
+    assert len(bench.of(Heartbeat)) == 20
+
+
+def test_connects_when_the_node_is_seen(bench):
+    assert bench.controller.state is S.DISCONNECTED
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+
+
+def test_arm_sends_command_and_follows_node(bench):
+    armed(bench)
+    assert [d.message for _, d in bench.of(Command)] == [Command(CommandCode.ARM)]
+
+
+def test_over_limit_setpoint_refused_and_nothing_sent(bench):
+    armed(bench)
+    with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm"):
+        bench.controller.set_speeds(250.0, 800.0)
+    bench.run(0.5, state=NodeState.ARMED)
+    assert all(d.message.rotary_rpm == 0.0 for _, d in bench.of(Setpoints))
+    assert any(e.kind is EventKind.REFUSAL and "250.0 rpm" in e.message for e in bench.events)
+
+
+def test_setpoints_follow_the_planned_ramp_at_10_hz(bench):
+    armed(bench)
+    move = bench.controller.set_speeds(180.0, 800.0)
+    bench.run(move.duration_s + 0.5, state=NodeState.ARMED)
+    sent = [d.message for _, d in bench.of(Setpoints)]
+    assert sent[-1].rotary_rpm == 180.0 and sent[-1].vibration_rpm == 800.0
+    for m in sent:  # every sent pair is inside
+        assert bench.controller.envelope.check(m.rotary_rpm, m.vibration_rpm).ok
+    assert len(sent) == pytest.approx((0.4 + move.duration_s + 0.5) * 10, abs=2)
+
+
+def test_commands_refused_in_the_wrong_state(bench):
+    with pytest.raises(CommandRefused, match="arm is not possible in state DISCONNECTED"):
+        bench.controller.arm()
+    bench.run(0.2, state=NodeState.DISABLED)
+    with pytest.raises(CommandRefused, match="set speeds is not possible in state DISABLED"):
+        bench.controller.set_speeds(10.0, 100.0)
+
+
+def test_measured_outside_trips_after_debounce(bench, config):
+    armed(bench)
+    n = config.interlock.debounce_samples
+    for i in range(n):
+        assert bench.controller.state is not S.TRIPPED, i
+        bench.alive(NodeState.RUNNING, rotary_rpm=260.0, vibration_rpm=800.0)
+        bench.controller.tick()
+        bench.collect()
+    assert bench.controller.state is S.TRIPPED
+    assert "measured speeds outside the envelope for 3 samples" in bench.controller.trip_cause
+    assert Command(CommandCode.STOP) in [d.message for _, d in bench.of(Command)]
+
+
+def test_a_single_outlier_does_not_trip(bench):
+    armed(bench)
+    bench.alive(NodeState.ARMED, rotary_rpm=260.0, vibration_rpm=800.0)
+    bench.run(0.5, state=NodeState.ARMED)
+    assert bench.controller.state is S.ARMED
+
+
+def test_stale_telemetry_trips_and_latches(bench):
+    armed(bench)
+    bench.run(2.0)  # the node falls silent
+    assert bench.controller.state is S.TRIPPED
+    assert "stale" in bench.controller.trip_cause
+    bench.run(1.0, state=NodeState.ARMED)  # it comes back: still latched
+    assert bench.controller.state is S.TRIPPED
+    with pytest.raises(CommandRefused, match="reset first"):
+        bench.controller.set_speeds(10.0, 100.0)
+
+
+def test_node_fault_trips_with_its_cause(bench):
+    from millctl.protocol import FaultCode, FaultFlag, NodeStatus
+
+    armed(bench)
+    bench.say(NodeStatus(NodeState.FAULT, FaultFlag.STALL, FaultCode.STALL))
+    bench.run(0.05)
+    assert bench.controller.state is S.TRIPPED and "STALL" in bench.controller.trip_cause
+
+
+def test_reset_needs_standstill_and_fresh_telemetry(bench):
+    armed(bench)
+    bench.run(2.0)
+    assert bench.controller.state is S.TRIPPED
+    bench.alive(NodeState.FAULT, rotary_rpm=50.0)
+    bench.run(0.05)
+    with pytest.raises(CommandRefused, match="not at standstill"):
+        bench.controller.reset()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    bench.collect()
+    assert Command(CommandCode.RESET) in [d.message for _, d in bench.of(Command)]
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+
+
+def test_node_restart_mid_run_trips(bench):
+    armed(bench)
+    bench.controller.set_speeds(100.0, 400.0)
+    bench.run(0.5, state=NodeState.RUNNING)
+    bench.run(0.2, state=NodeState.DISABLED)  # a fresh node boots DISABLED
+    assert bench.controller.state is S.TRIPPED
+    assert "restarted" in bench.controller.trip_cause
+
+
+def test_every_state_change_has_a_reason(bench):
+    armed(bench)
+    changes = [e for e in bench.events if e.kind is EventKind.STATE]
+    assert [e.data["target_state"] for e in changes] == ["DISABLED", "ARMED"]
+    assert all(e.data["reason"] for e in changes)
