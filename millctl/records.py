@@ -18,7 +18,10 @@ from typing import Any
 
 
 class RecordWriter:
-    """Writes ``<directory>/<name>.jsonl``; past ``rotate_bytes`` it becomes ``<name>.1.jsonl`` and so on."""
+    """Writes ``<directory>/<name>.jsonl``; past ``rotate_bytes`` it becomes ``<name>.1.jsonl`` and so on.
+
+    At most ``keep`` rotated files are kept besides the current one.
+    """
 
     def __init__(self, directory: str | Path, name: str, *, rotate_bytes: int = 16 << 20, keep: int = 10,
                  sync: bool = True) -> None:
@@ -54,12 +57,12 @@ class RecordWriter:
 
     def _rotate(self) -> None:
         self._file.close()
+        (self.directory / f"{self.name}.{self.keep}.jsonl").unlink(missing_ok=True)
         for index in range(self.keep - 1, 0, -1):
             older = self.directory / f"{self.name}.{index}.jsonl"
             if older.exists():
                 older.replace(self.directory / f"{self.name}.{index + 1}.jsonl")
         self.path.replace(self.directory / f"{self.name}.1.jsonl")
-        (self.directory / f"{self.name}.{self.keep}.jsonl").unlink(missing_ok=True)
         self._file = open(self.path, "a", encoding="utf-8")  # noqa: SIM115
 
     def close(self) -> None:
