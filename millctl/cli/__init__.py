@@ -20,6 +20,7 @@ COMMAND_MODULES = (
     "millctl.cli.config_cmd",
     "millctl.cli.limits_cmd",
     "millctl.cli.recipe_cmd",
+    "millctl.cli.bus_cmd",
 )
 """Command modules, in the order ``--help`` lists them."""
 

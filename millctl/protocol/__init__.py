@@ -7,9 +7,12 @@ interfaces (:func:`open_bus`). See docs/protocol.md.
 
 from __future__ import annotations
 
+from millctl.protocol.buslog import RotatingBusLog
+from millctl.protocol.busload import BusLoad, bus_load
 from millctl.protocol.codec import DBC_NAME, Codec, Decoded, default_codec
 from millctl.protocol.e2e import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
 from millctl.protocol.errors import ProtocolError, SignalRangeError
+from millctl.protocol.factory import bus_kwargs, open_bus
 from millctl.protocol.messages import (
     ESTOP_ID,
     MESSAGE_TYPES,
@@ -42,6 +45,7 @@ __all__ = [
     "NO_FAULTS",
     "SIM_CONTROL_IDS",
     "AliveCounter",
+    "BusLoad",
     "Codec",
     "Command",
     "CommandCode",
@@ -62,11 +66,15 @@ __all__ = [
     "PhysicsTelemetry",
     "ProtocolError",
     "RefusalCode",
+    "RotatingBusLog",
     "Setpoints",
     "SignalRangeError",
     "SimFault",
     "SimFaultCode",
+    "bus_kwargs",
+    "bus_load",
     "crc8_sae_j1850",
     "default_codec",
     "e2e_crc",
+    "open_bus",
 ]

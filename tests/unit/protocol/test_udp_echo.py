@@ -1,0 +1,118 @@
+"""The echo-free udp_multicast bus, exercised only inside a private network namespace.
+
+The pair of buses runs in a subprocess under ``unshare -rn`` (lo up, a route
+for 224.0.0.0/4 on lo), so no multicast datagram is ever sent from the
+default namespace. Where user namespaces are unavailable the test skips.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import can
+import pytest
+
+from millctl.config.models import Bus
+from millctl.errors import BusError
+from millctl.protocol.factory import bus_kwargs, open_bus
+from millctl.protocol.udp import private_netns_problem
+
+REPO = Path(__file__).resolve().parents[3]
+SETUP = "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec"
+
+CHILD = textwrap.dedent(
+    """
+    import json
+    import can
+    from millctl.config.models import Bus
+    from millctl.protocol import Command, CommandCode, default_codec
+    from millctl.protocol.factory import open_bus
+
+    config = Bus(interface="udp_multicast", channel="239.74.163.2", options={"port": 43117, "hop_limit": 0})
+    codec = default_codec()
+    a, b = open_bus(config), open_bus(config)
+    stock = can.Bus(interface="udp_multicast", channel="239.74.163.2", port=43117, hop_limit=0)
+    try:
+        a.send(codec.encode(Command(CommandCode.ARM), counter=1))
+        got_b = b.recv(2.0)
+        got_stock = stock.recv(2.0)
+        echo_a = a.recv(0.3)
+        b.send(codec.encode(Command(CommandCode.STOP), counter=2))
+        got_a = a.recv(2.0)
+        echo_b = b.recv(0.3)
+        def show(frame):
+            return None if frame is None else codec.decode(frame).message.command.name
+        print(json.dumps({
+            "b_got": show(got_b), "stock_got": show(got_stock), "a_echo": show(echo_a),
+            "a_got": show(got_a), "b_echo": show(echo_b),
+        }))
+    finally:
+        for bus in (a, b, stock):
+            bus.shutdown()
+    """
+)
+
+
+def run_in_private_netns(code: str) -> subprocess.CompletedProcess[str]:
+    if shutil.which("unshare") is None or shutil.which("ip") is None:
+        pytest.skip("unshare or ip (iproute2) is not installed")
+    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True, text=True, timeout=30)
+    if probe.returncode != 0:
+        pytest.skip(f"user namespaces unavailable here (unshare -rn: {probe.stderr.strip() or probe.returncode})")
+    command = f'{SETUP} "$0" -c "$1"'
+    return subprocess.run(
+        ["unshare", "-rn", "sh", "-c", command, sys.executable, code],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=REPO,
+    )
+
+
+def test_pair_in_a_private_namespace_hears_each_other_but_never_itself() -> None:
+    result = run_in_private_netns(CHILD)
+    assert result.returncode == 0, result.stderr
+    seen = json.loads(result.stdout.strip().splitlines()[-1])
+    assert seen == {"b_got": "ARM", "stock_got": "ARM", "a_echo": None, "a_got": "STOP", "b_echo": None}
+
+
+def test_refuses_a_hop_limit_other_than_zero_without_opening_a_socket() -> None:
+    config = Bus(interface="udp_multicast", channel="239.74.163.2", options={"hop_limit": 1})
+    with pytest.raises(BusError, match=r"hop_limit \(TTL\) = 1, must be 0"):
+        open_bus(config)
+    with pytest.raises(BusError, match="hop_limit must be given explicitly"):
+        open_bus(Bus(interface="millctl_udp_multicast", channel="239.74.163.2"))
+
+
+def test_refuses_the_default_namespace_and_a_non_multicast_channel() -> None:
+    if private_netns_problem() is None:
+        pytest.skip("this namespace has only lo, so the shared-namespace refusal does not apply")
+    with pytest.raises(BusError, match="runs only where lo is the sole interface"):
+        open_bus(Bus(interface="udp_multicast", channel="239.74.163.2", options={"hop_limit": 0}))
+    with pytest.raises(BusError, match="not an IP address"):
+        open_bus(Bus(interface="udp_multicast", channel="millbus", options={"hop_limit": 0}))
+    with pytest.raises(BusError, match="not a multicast group"):
+        open_bus(Bus(interface="udp_multicast", channel="127.0.0.1", options={"hop_limit": 0}))
+
+
+def test_factory_maps_stock_udp_multicast_to_the_echo_free_interface() -> None:
+    kwargs = bus_kwargs(Bus(interface="udp_multicast", channel="239.74.163.2", options={"hop_limit": 0}))
+    assert kwargs["interface"] == "millctl_udp_multicast"
+    assert kwargs["hop_limit"] == 0 and kwargs["fd"] is False
+
+
+def test_virtual_bus_opens_and_does_not_echo() -> None:
+    bus = open_bus(Bus(interface="virtual", channel="test-protocol-echo"))
+    peer = open_bus(Bus(interface="virtual", channel="test-protocol-echo"))
+    try:
+        bus.send(can.Message(arbitration_id=0x20, data=bytes(8), is_extended_id=False))
+        assert peer.recv(1.0) is not None
+        assert bus.recv(0.05) is None
+    finally:
+        bus.shutdown()
+        peer.shutdown()
