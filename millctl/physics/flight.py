@@ -1,0 +1,134 @@
+"""Rod states in vial-centred coordinates: pinned to the wall, or in free flight (eq. 10 with τ = t − t_0).
+
+Positions are relative to the vial centre c(t), which moves with the cam; in that
+frame a pinned rod is r0·(cos θ, sin θ) and a flying rod is
+
+    d(τ) = d_0 + u_0 τ + h(τ) ŷ,   h(τ) = −½ g τ² − r_d [sin(α_0 + ω_v τ) − sin α_0 − ω_v τ cos α_0],
+
+where u_0 is the rod's velocity relative to the vial centre at t_0 (the lab
+velocity of eq. 2 minus the vial's own r_d ω_v cos α). The stable reduced forms
+h/τ² and (h/τ² + ½ g_eff,0)/τ let the wall gap of a departing rod be divided by
+its known triple root (:func:`departure_wall_gap`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millctl.physics.model import Scene
+
+FloatArray = NDArray[np.float64]
+
+_FACT = [math.factorial(k) for k in range(40)]
+
+
+def _c2_plus_half_over_x(x: float) -> float:
+    """((cos x − 1)/x² + ½)/x, stable at small x."""
+    if abs(x) < 1.0:
+        return float(sum((-1) ** k * x ** (2 * k - 3) / _FACT[2 * k] for k in range(2, 12)))
+    return ((math.cos(x) - 1.0) / (x * x) + 0.5) / x
+
+
+def _s3(x: float) -> float:
+    """(sin x − x)/x³, stable at small x."""
+    if abs(x) < 1.0:
+        return float(sum((-1) ** k * x ** (2 * k - 2) / _FACT[2 * k + 1] for k in range(1, 12)))
+    return (math.sin(x) - x) / (x * x * x)
+
+
+@dataclass(frozen=True)
+class WallState:
+    """A rod pinned to the wall from t_0 on, at angle θ_0 + ω_r (t − t_0)."""
+
+    t0_s: float
+    theta0_rad: float
+
+    def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
+        """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
+        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        th = self.theta0_rad + w * (t_s - self.t0_s)
+        c, s = math.cos(th), math.sin(th)
+        return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
+
+    def rel_array(self, scene: Scene, t_s: FloatArray) -> tuple[FloatArray, ...]:
+        """Vectorised :meth:`rel`."""
+        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        th = self.theta0_rad + w * (t_s - self.t0_s)
+        c, s = np.cos(th), np.sin(th)
+        return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
+
+
+@dataclass(frozen=True)
+class FlightState:
+    """A rod in free flight from t_0: position d_0 and velocity u_0 relative to the vial centre."""
+
+    t0_s: float
+    x0_m: float
+    y0_m: float
+    ux0_m_s: float
+    uy0_m_s: float
+    from_wall: bool = False
+    """True when the flight starts with the rod on the wall (departure: the wall gap has a triple root)."""
+
+    def _alpha0(self, scene: Scene) -> float:
+        return scene.alpha0_rad + scene.omega_v_rad_s * self.t0_s
+
+    def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
+        """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
+        tau = t_s - self.t0_s
+        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        a0 = self._alpha0(scene)
+        h = -0.5 * g * tau * tau - r_d * (math.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
+        dh = -g * tau - r_d * w * (math.cos(a0 + w * tau) - math.cos(a0))
+        return self.x0_m + self.ux0_m_s * tau, self.y0_m + self.uy0_m_s * tau + h, self.ux0_m_s, self.uy0_m_s + dh
+
+    def rel_array(self, scene: Scene, t_s: FloatArray) -> tuple[FloatArray, ...]:
+        """Vectorised :meth:`rel`."""
+        tau = t_s - self.t0_s
+        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        a0 = self._alpha0(scene)
+        h = -0.5 * g * tau * tau - r_d * (np.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
+        dh = -g * tau - r_d * w * (np.cos(a0 + w * tau) - math.cos(a0))
+        x = self.x0_m + self.ux0_m_s * tau
+        return x, self.y0_m + self.uy0_m_s * tau + h, np.full_like(tau, self.ux0_m_s), self.uy0_m_s + dh
+
+
+RodState = WallState | FlightState
+
+
+def depart(scene: Scene, wall: WallState, t_d_s: float) -> FlightState:
+    """The flight that starts when a pinned rod detaches at t_d (eq. 2's velocity, relative to the vial)."""
+    x, y, vx, vy = wall.rel(scene, t_d_s)
+    return FlightState(t_d_s, x, y, vx, vy, from_wall=True)
+
+
+def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, t_s: float) -> float:
+    """(r0² − |d|²)/τ² for a departing rod, or /τ³ when N_d = 0 (the triple root divided out).
+
+    ``n_d_m2_s2`` is r0·N_true(t_d)/m, the τ⁰ coefficient of (|d|² − r0²)/τ²: 0 by
+    construction in the corrected variant, where it is dropped exactly so that
+    rounding cannot fake a collision at departure. Positive while the rod is
+    inside the wall circle.
+    """
+    tau = t_s - flight.t0_s
+    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.omega_v_rad_s
+    r_d, g = scene.model.eccentricity_m, scene.model.g_m_s2
+    a0 = flight._alpha0(scene)
+    s_d, c_d = flight.y0_m / r0, flight.x0_m / r0
+    x = w_v * tau
+    sa, ca = math.sin(a0), math.cos(a0)
+    # η = h/τ², η0 = η(0) = −½ g_eff,0, dη = (η − η0)/τ
+    d_eta = -r_d * w_v**3 * (sa * _c2_plus_half_over_x(x) + ca * _s3(x))
+    eta0 = -0.5 * g + 0.5 * r_d * w_v * w_v * sa
+    eta = eta0 + d_eta * tau
+    reduced = 2.0 * r0 * (d_eta * s_d + eta * w_r * c_d) + eta * eta * tau
+    if n_d_m2_s2 == 0.0:
+        return -reduced
+    return -(n_d_m2_s2 + tau * reduced)
+
+
+__all__ = ["FlightState", "RodState", "WallState", "depart", "departure_wall_gap"]

@@ -1,0 +1,159 @@
+"""Level (b), node telemetry: a per-revolution summary cheap enough to run live.
+
+For K cam phases α0 (default 4, evenly spaced) one rod starts pinned at the
+bottom of the vial (θ0 = −π/2) and is followed with the exact engine through one
+revolution: detachment (eq. 7 or the corrected law), free flight (eq. 10) and its
+first contact with the wall or with one of the other n − 1 rods, which are held
+on the wall at their eq. 11 positions (the level-(c) simulation lets them fly
+too). From the K samples:
+
+* ``detached``: any sample detaches; ``detach_fraction`` the share that do;
+* ``theta_d_rad``: circular mean of θ_d over the detaching samples;
+* collisions per rod and revolution p: detach_fraction × mean over detaching
+  samples of 2π/(ω_r T), where T = flight time + the wall travel from the
+  landing angle back to θ_d (1 per revolution when the rod lands on a rod);
+* ``impact_rate_hz``: corrected n·p·ω_r/2π (whole mill); paper eq. 18 p·ω_r/2π
+  as printed (per rod, the paper's number);
+* ``mean_impact_energy_j``: corrected ½ m_eff (1 − e²) v_n²; paper eq. 19 ½ m |v|²;
+* ``impact_power_w`` = rate × mean energy;
+* ``mean_shear_pa``: eq. 25, μ·p_av, averaged over the pinned arc (corrected,
+  N = m(r0 ω_r² − g sin θ) ≥ 0 at 16 angles) or at the paper's N_c = m ω_r² r0.
+
+Cost (Set A, 200/800 rpm, one CPython core): about 0.2–0.4 ms per cam phase,
+≈ 1–1.5 ms per call with K = 4; the node calls it at ~2 Hz or once per
+revolution, not every 10 ms tick. Below ``MIN_OMEGA_R_RAD_S`` (1 rpm) the vial is
+treated as standing still: rods pinned, no impacts, no shear.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from millctl.config.models import ModelVariant
+from millctl.errors import PhysicsInputError
+from millctl.physics.detachment import find_detachment
+from millctl.physics.events import WALL, earliest_contact
+from millctl.physics.flight import RodState, WallState, depart
+from millctl.physics.impact import impact_energy_j, impact_rate_hz, wall_shear_pa
+from millctl.physics.kinematics import true_normal_force_per_mass
+from millctl.physics.model import MillModel, Scene
+
+MIN_OMEGA_R_RAD_S = 2.0 * math.pi / 60.0
+"""Below 1 rpm the summary reports standstill (pinned, no impacts)."""
+
+_SHEAR_THETAS = tuple(2.0 * math.pi * (k + 0.5) / 16 for k in range(16))
+_FLIGHT_CAP_S = 2.0
+
+
+@dataclass(frozen=True)
+class RevolutionSummary:
+    """What one revolution of the mill does, phase-averaged over the cam (level-(b) telemetry)."""
+
+    detached: bool
+    """False = rods stay pinned to the wall."""
+    theta_d_rad: float
+    """Detachment angle (circular mean), nan when pinned."""
+    impact_rate_hz: float
+    """Whole mill (corrected: n·p·ω_r/2π); paper variant: eq. 18 p·ω_r/2π as printed."""
+    mean_impact_energy_j: float
+    impact_power_w: float
+    mean_shear_pa: float
+    detach_fraction: float = 0.0
+    """Share of the sampled cam phases in which the rod detaches within the revolution."""
+    collisions_per_rod_rev: float = 0.0
+    """p, the mean number of impacts per rod and revolution."""
+    mean_flight_time_s: float = math.nan
+    wall_impact_fraction: float = math.nan
+    """Share of impacts on the wall (the rest hit another rod)."""
+
+
+def _pinned(model: MillModel, omega_r: float, shear_pa: float) -> RevolutionSummary:
+    return RevolutionSummary(False, math.nan, 0.0, 0.0, 0.0, shear_pa, 0.0, 0.0, math.nan, math.nan)
+
+
+def _mean_shear_pa(model: MillModel, omega_r: float) -> float:
+    m = model.rod_mass_kg
+    if model.variant is ModelVariant.PAPER:
+        return wall_shear_pa(model, m * omega_r * omega_r * model.r0_m)
+    centripetal = model.r0_m * omega_r * omega_r
+    loads = (max(centripetal - model.g_m_s2 * math.sin(th), 0.0) * m for th in _SHEAR_THETAS)
+    return sum(wall_shear_pa(model, n) for n in loads) / len(_SHEAR_THETAS)
+
+
+def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
+    """One cam phase: (θ_d, energy J, cycles per revolution, flight s, hit the wall) or None if pinned."""
+    model = scene.model
+    det = find_detachment(scene)
+    if not det.detached:
+        return None
+    wall0 = WallState(0.0, scene.theta0_rad)
+    flight = depart(scene, wall0, det.time_s)
+    states: list[RodState] = [flight]
+    states += [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(1, model.n_rods)]
+    n_d = 0.0
+    if model.variant is not ModelVariant.CORRECTED or det.at_start:
+        n_d = model.r0_m * true_normal_force_per_mass(scene, det.time_s, det.theta_rad)
+    contact = earliest_contact(scene, states, det.time_s, det.time_s + _FLIGHT_CAP_S, {0: n_d}, rods=[0])
+    if contact is None:
+        return None
+    t_f = contact.time_s - det.time_s
+    _, _, vx, vy = flight.rel(scene, contact.time_s)
+    vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
+    speed_abs = math.hypot(vx, vy + vyc)
+    on_wall = contact.partner == WALL
+    energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, on_wall)
+    if on_wall:
+        x, y, _, _ = flight.rel(scene, contact.time_s)
+        travel = (det.theta_rad - math.atan2(y, x)) % (2.0 * math.pi)
+        cycle_s = t_f + travel / scene.omega_r_rad_s
+        per_rev = 2.0 * math.pi / (scene.omega_r_rad_s * cycle_s) if cycle_s > 0.0 else 1.0
+    else:
+        per_rev = 1.0
+    return det.theta_rad, energy, per_rev, t_f, on_wall
+
+
+def revolution_summary(
+    model: MillModel, omega_r_rad_s: float, omega_v_rad_s: float, cam_phases: int = 4
+) -> RevolutionSummary:
+    """Level-(b) summary of one revolution at constant speeds (rad/s); never raises at standstill.
+
+    Negative speeds are mirror images and are taken by magnitude.
+    """
+    if not (math.isfinite(omega_r_rad_s) and math.isfinite(omega_v_rad_s)):
+        raise PhysicsInputError(f"speeds must be finite, got ω_r = {omega_r_rad_s}, ω_v = {omega_v_rad_s} rad/s")
+    if cam_phases < 1:
+        raise PhysicsInputError(f"cam_phases = {cam_phases} must be ≥ 1")
+    w_r, w_v = abs(omega_r_rad_s), abs(omega_v_rad_s)
+    if w_r < MIN_OMEGA_R_RAD_S:
+        return _pinned(model, w_r, 0.0)
+    shear = _mean_shear_pa(model, w_r)
+    samples = []
+    for k in range(cam_phases):
+        scene = Scene(model, w_r, w_v, -0.5 * math.pi, 2.0 * math.pi * k / cam_phases)
+        result = _sample(scene)
+        if result is not None:
+            samples.append(result)
+    if not samples:
+        return _pinned(model, w_r, shear)
+    count = len(samples)
+    fraction = count / cam_phases
+    theta_d = math.atan2(sum(math.sin(s[0]) for s in samples), sum(math.cos(s[0]) for s in samples))
+    p = fraction * sum(s[2] for s in samples) / count
+    rate = impact_rate_hz(model, p, w_r)
+    energy = sum(s[1] for s in samples) / count
+    return RevolutionSummary(
+        detached=True,
+        theta_d_rad=theta_d,
+        impact_rate_hz=rate,
+        mean_impact_energy_j=energy,
+        impact_power_w=rate * energy,
+        mean_shear_pa=shear,
+        detach_fraction=fraction,
+        collisions_per_rod_rev=p,
+        mean_flight_time_s=sum(s[3] for s in samples) / count,
+        wall_impact_fraction=sum(1.0 for s in samples if s[4]) / count,
+    )
+
+
+__all__ = ["MIN_OMEGA_R_RAD_S", "RevolutionSummary", "revolution_summary"]

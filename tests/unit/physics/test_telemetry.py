@@ -1,0 +1,85 @@
+"""Level (b): the node's per-revolution summary."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from millctl.config import ModelVariant
+from millctl.errors import PhysicsInputError
+from millctl.physics.limits import LimitParams, omega_r_max_paper_eq9
+from millctl.physics.telemetry import RevolutionSummary, revolution_summary
+from millctl.units import rpm_to_rad_s
+
+
+def test_from_config_takes_the_variant(config, set_a):
+    assert set_a.variant is ModelVariant(config.model.variant)
+    assert set_a.r0_m == pytest.approx(0.018)
+    assert set_a.rod_mass_kg == pytest.approx(0.0886, abs=5e-4)
+
+
+@pytest.mark.parametrize("variant", list(ModelVariant))
+@pytest.mark.parametrize("omega_r", [0.0, -0.0, 1e-9, -1e-3])
+def test_standstill_is_pinned_and_never_raises(set_a, variant, omega_r):
+    model = dataclasses.replace(set_a, variant=variant)
+    s = revolution_summary(model, omega_r, rpm_to_rad_s(800.0))
+    assert isinstance(s, RevolutionSummary)
+    assert not s.detached and math.isnan(s.theta_d_rad)
+    assert s.impact_rate_hz == 0.0 and s.impact_power_w == 0.0 and s.mean_impact_energy_j == 0.0
+
+
+def test_corrected_set_a_detaches_and_counts_whole_mill(set_a_corrected):
+    w_r = rpm_to_rad_s(200.0)
+    s = revolution_summary(set_a_corrected, w_r, rpm_to_rad_s(800.0))
+    assert s.detached
+    assert 0.0 < s.theta_d_rad < math.pi / 2
+    # sin θ_d = r0 ω_r² / g_eff with g_eff within g(1 ± Γ)
+    gamma = set_a_corrected.eccentricity_m * rpm_to_rad_s(800.0) ** 2 / set_a_corrected.g_m_s2
+    lo = set_a_corrected.r0_m * w_r**2 / (set_a_corrected.g_m_s2 * (1 + gamma))
+    assert math.sin(s.theta_d_rad) >= lo
+    expected = set_a_corrected.n_rods * s.collisions_per_rod_rev * w_r / (2 * math.pi)
+    assert s.impact_rate_hz == pytest.approx(expected, rel=1e-12)
+    assert s.impact_power_w == pytest.approx(s.impact_rate_hz * s.mean_impact_energy_j, rel=1e-12)
+    assert s.mean_impact_energy_j > 0.0 and s.mean_shear_pa > 0.0
+
+
+def test_paper_rate_is_eq18_per_rod(set_a_paper):
+    w_r = rpm_to_rad_s(100.0)
+    s = revolution_summary(set_a_paper, w_r, rpm_to_rad_s(800.0))
+    assert s.detached
+    assert s.impact_rate_hz == pytest.approx(s.collisions_per_rod_rev * w_r / (2 * math.pi), rel=1e-12)
+
+
+def test_paper_pinned_above_its_best_phase_limit(set_a_paper):
+    """Above printed eq. 9 (k < mω_v² there, so eq. 9 is the paper's most permissive phase) nothing detaches."""
+    w_v = rpm_to_rad_s(800.0)
+    p = LimitParams(set_a_paper.rod_mass_kg, set_a_paper.r0_m, set_a_paper.eccentricity_m, set_a_paper.spring_n_per_m)
+    limit = float(omega_r_max_paper_eq9(p, w_v))
+    s = revolution_summary(set_a_paper, 1.01 * limit, w_v)
+    assert not s.detached and s.impact_rate_hz == 0.0
+
+
+def test_nonfinite_speed_rejected(set_a):
+    with pytest.raises(PhysicsInputError):
+        revolution_summary(set_a, math.nan, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("rod_radius_m", -0.006), ("vial_radius_m", 0.005), ("n_rods", 10), ("restitution", 1.5), ("rod_mass_kg", 0.0)],
+)
+def test_invalid_physical_inputs_rejected(set_a, field, value):
+    with pytest.raises(PhysicsInputError):
+        dataclasses.replace(set_a, **{field: value})
+
+
+def test_packing_limit_is_exact(set_a):
+    """n at the packing limit: 2 r0 sin(π/n) = 2 r_r is allowed, a hair more rods' radius is not."""
+    r_v = set_a.vial_radius_m
+    # r0 sin(π/6) = r_r  ⇔  (r_v − r_r)/2 = r_r  ⇔  r_r = r_v/3
+    ok = dataclasses.replace(set_a, rod_radius_m=r_v / 3 * (1 - 1e-12), n_rods=6)
+    assert ok.n_rods == 6
+    with pytest.raises(PhysicsInputError, match="packing limit"):
+        dataclasses.replace(set_a, rod_radius_m=r_v / 3 * (1 + 1e-9), n_rods=6)
