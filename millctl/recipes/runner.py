@@ -1,0 +1,348 @@
+"""Run a pre-flighted recipe on a controller, step by step, with pause, resume, abort and a run record.
+
+The runner lives in the controller service's loop (hours-long runs survive a
+closed terminal) and is stepped by :meth:`RecipeRunner.tick` after the
+controller's own tick. It never talks to the bus: every move goes through the
+:class:`~millctl.controller.Controller`, so the interlock applies to recipes
+exactly as to an operator. Stop and abort are the controller's controlled
+stop; a trip ends the run as failed with its cause.
+
+Run states::
+
+    STARTING → RUNNING ⇄ PAUSED / HELD → STOPPING → DONE | ABORTED
+                  └──────────── trip ───────────────→ FAILED
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import uuid
+from pathlib import Path
+from typing import Any
+
+from millctl import __version__
+from millctl.clock import Clock
+from millctl.controller import CommandRefused, Controller, ControllerState
+from millctl.errors import InterlockError
+from millctl.recipes.plan import RecipePlan, StepPlan
+from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
+from millctl.records import RecordWriter
+
+log = logging.getLogger(__name__)
+
+S = ControllerState
+
+ARM_TIMEOUT_S = 5.0
+"""How long the runner waits for the node to arm before the run fails (s)."""
+
+SETTLE_TIMEOUT_S = 30.0
+"""How long after its planned end a ramp may take to settle within tolerance (s)."""
+
+STANDSTILL_RPM = 1.0
+
+
+class RunState(enum.StrEnum):
+    """Where a recipe run is."""
+
+    STARTING = "STARTING"
+    RUNNING = "RUNNING"
+    PAUSED = "PAUSED"
+    HELD = "HELD"
+    """Held automatically (furnace out of its band); the operator resumes."""
+    STOPPING = "STOPPING"
+    DONE = "DONE"
+    ABORTED = "ABORTED"
+    FAILED = "FAILED"
+
+
+FINAL = frozenset({RunState.DONE, RunState.ABORTED, RunState.FAILED})
+
+
+class RecipeRunner:
+    """One run of one recipe on one controller."""
+
+    def __init__(
+        self,
+        controller: Controller,
+        loaded: LoadedRecipe,
+        plan: RecipePlan,
+        clock: Clock,
+        *,
+        records_dir: Path,
+        config_sha256: str,
+        source: str = "recipe",
+    ) -> None:
+        if not plan.ok:
+            raise InterlockError(f"recipe {loaded.source} does not pass its pre-flight: {plan.violations[0]}")
+        self.controller = controller
+        self.loaded = loaded
+        self.plan = plan
+        self.clock = clock
+        self.source = source
+        self.run_id = f"{clock_stamp()}-{uuid.uuid4().hex[:6]}"
+        self.state = RunState.STARTING
+        self.reason = ""
+        self.index = 0
+        """0-based index of the current step; len(steps) once past the last."""
+        self._started_s = clock.now()
+        self._step_started_s = clock.now()
+        self._step_elapsed_s = 0.0
+        self._step_begun = False
+        self._begun_index = -1
+        """Index of the step whose start was recorded (a boundary pause defers it)."""
+        self._pause_at_boundary = False
+        self._finish_as = RunState.DONE
+        self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1)
+        self._write(
+            "start",
+            recipe=loaded.recipe.recipe.name,
+            recipe_file=loaded.source,
+            recipe_sha256=loaded.sha256,
+            config_sha256=config_sha256,
+            version=__version__,
+            law=plan.law,
+            margin=plan.margin,
+            steps=len(plan.steps),
+            planned_s=plan.total_s,
+        )
+
+    # ------------------------------------------------------------------ record
+    def _write(self, event: str, **data: Any) -> None:
+        self.record.write({"run_id": self.run_id, "event": event, "clock_s": self.clock.now(), **data})
+
+    @property
+    def steps(self) -> list[Step]:
+        """The recipe's steps."""
+        return self.loaded.recipe.steps
+
+    @property
+    def finished(self) -> bool:
+        """True once the run reached DONE, ABORTED or FAILED."""
+        return self.state in FINAL
+
+    # ------------------------------------------------------------------ operator
+    def pause(self, now: bool = False, source: str = "operator") -> None:
+        """Pause now (hold the current setpoints) or at the next step boundary."""
+        if self.state is not RunState.RUNNING:
+            raise CommandRefused(f"cannot pause a run that is {self.state}")
+        if not now:
+            self._pause_at_boundary = True
+            self._write("pause_requested", source=source, at="boundary")
+            return
+        self._freeze()
+        self._enter(RunState.PAUSED, f"paused by {source}")
+        self._write("pause", source=source, at="now", step=self.index + 1)
+
+    def resume(self, source: str = "operator") -> None:
+        """Resume a paused or held run."""
+        if self.state not in (RunState.PAUSED, RunState.HELD):
+            raise CommandRefused(f"cannot resume a run that is {self.state}")
+        self._pause_at_boundary = False
+        self._step_started_s = self.clock.now()
+        if self.index < len(self.steps) and isinstance(self.steps[self.index], RampStep):
+            self._step_begun = False  # re-issue the ramp from where the mill is now
+        self._enter(RunState.RUNNING, f"resumed by {source}")
+        self._write("resume", source=source, step=self.index + 1)
+        if self._begun_index != self.index:
+            self._begin_step()
+
+    def abort(self, source: str = "operator") -> None:
+        """Abort: a controlled stop inside the envelope, then ABORTED."""
+        if self.finished or self.state is RunState.STOPPING:
+            raise CommandRefused(f"cannot abort a run that is {self.state}")
+        self._write("abort", source=source, step=self.index + 1)
+        self._stop(RunState.ABORTED, f"aborted by {source}")
+
+    # ------------------------------------------------------------------ internals
+    def _enter(self, state: RunState, reason: str) -> None:
+        log.info("run %s: %s → %s (%s)", self.run_id, self.state, state, reason)
+        self.state, self.reason = state, reason
+
+    def _freeze(self) -> None:
+        self._step_elapsed_s += self.clock.now() - self._step_started_s
+        commanded = self.controller.commanded
+        if self.controller.trajectory is not None and self.controller.state in (S.ARMED, S.RUNNING):
+            self.controller.set_speeds(commanded.omega_r_rpm, commanded.omega_v_rpm, source=self.source)
+
+    def _stop(self, final: RunState, reason: str) -> None:
+        self._finish_as = final
+        self._enter(RunState.STOPPING, reason)
+        if self.controller.state in (S.ARMED, S.RUNNING, S.STOPPING):
+            self.controller.stop(self.source, reason)
+
+    def _fail(self, reason: str) -> None:
+        self._write("fail", reason=reason, step=self.index + 1)
+        if self.controller.state is S.TRIPPED:
+            self._enter(RunState.FAILED, reason)
+            self._end()
+        else:
+            self._stop(RunState.FAILED, reason)
+
+    def _end(self) -> None:
+        self._write("end", status=str(self.state), reason=self.reason, elapsed_s=self.clock.now() - self._started_s)
+        self.record.close()
+
+    def _tolerances(self, step: Step) -> Tolerances:
+        own = getattr(step, "tolerances", None)
+        return own if isinstance(own, Tolerances) else self.loaded.recipe.defaults.tolerances
+
+    # ------------------------------------------------------------------ the loop
+    def tick(self) -> None:
+        """Advance the run; call after the controller's tick."""
+        if self.finished:
+            return
+        c = self.controller
+        if c.state is S.TRIPPED and self.state is not RunState.STOPPING:
+            self._write("trip", cause=c.trip_cause, step=self.index + 1)
+            self._enter(RunState.FAILED, f"interlock trip: {c.trip_cause}")
+            self._end()
+            return
+        try:
+            self._advance()
+        except InterlockError as exc:  # a refusal mid-run: stop safely, report
+            self._write("refusal", reason=str(exc), step=self.index + 1)
+            self._fail(f"step {self.index + 1} refused: {exc}")
+
+    def _advance(self) -> None:
+        c = self.controller
+        now = self.clock.now()
+        if self.state is RunState.STARTING:
+            if c.state is S.DISABLED:
+                c.arm(self.source)
+            if c.state in (S.ARMED, S.RUNNING):
+                self._enter(RunState.RUNNING, "armed")
+                self._begin_step()
+            elif c.state is S.TRIPPED or now - self._started_s > ARM_TIMEOUT_S:
+                self._fail(f"the mill did not arm within {ARM_TIMEOUT_S:.0f} s (controller {c.state})")
+            return
+        if self.state is RunState.STOPPING:
+            measured = c.measured
+            still = measured is not None and max(measured.rotary_rpm, measured.vibration_rpm) < STANDSTILL_RPM
+            if c.state is S.TRIPPED or (c.state is S.ARMED and still):
+                self._enter(self._finish_as, self.reason or "stopped")
+                self._end()
+            return
+        if self.state is not RunState.RUNNING:
+            return
+        if self._step_done(now):
+            self._write("step_end", step=self.index + 1, kind=self.steps[self.index].kind)
+            self.index += 1
+            if self.index >= len(self.steps):
+                self._stop(RunState.DONE, "recipe complete")
+                return
+            if self._pause_at_boundary:
+                self._pause_at_boundary = False
+                self._enter(RunState.PAUSED, "paused at step boundary")
+                self._write("pause", at="boundary", step=self.index + 1)
+                return
+            self._begin_step()
+
+    def _begin_step(self) -> None:
+        step = self.steps[self.index]
+        self._begun_index = self.index
+        self._step_started_s = self.clock.now()
+        self._step_elapsed_s = 0.0
+        self._step_begun = False
+        self._write("step_start", step=self.index + 1, kind=step.kind, planned_s=self.plan.steps[self.index].duration_s)
+        if isinstance(step, PauseStep):
+            self._enter(RunState.PAUSED, step.message)
+
+    def _issue_ramp(self, step: RampStep) -> None:
+        c = self.controller
+        defaults = self.loaded.recipe.defaults
+        c.set_speeds(
+            step.rotary_rpm,
+            step.vibration_rpm,
+            rotary_rate_rpm_s=step.rotary_rate_rpm_s or defaults.rotary_rate_rpm_s,
+            vibration_rate_rpm_s=step.vibration_rate_rpm_s or defaults.vibration_rate_rpm_s,
+            linear=step.path == "linear",
+            source=self.source,
+        )
+        if step.furnace_c is not None:
+            rate = step.heating_rate_c_per_min or defaults.heating_rate_c_per_min
+            c.set_furnace(step.furnace_c, rate_c_per_min=rate, source=self.source)
+
+    def _step_done(self, now: float) -> bool:
+        step = self.steps[self.index]
+        elapsed = self._step_elapsed_s + (now - self._step_started_s)
+        c = self.controller
+        if isinstance(step, RampStep):
+            if not self._step_begun:
+                self._issue_ramp(step)
+                self._step_begun = True
+                return False
+            furnace_done = c.furnace_target_c is None or c.furnace_setpoint_c == c.furnace_target_c
+            if c.trajectory is not None or not furnace_done:
+                return False
+            measured = c.measured
+            tol = self._tolerances(step).speed_rpm
+            settled = measured is not None and (
+                abs(measured.rotary_rpm - step.rotary_rpm) <= tol
+                and abs(measured.vibration_rpm - step.vibration_rpm) <= tol
+            )
+            planned = self.plan.steps[self.index].duration_s
+            if not settled and elapsed > planned + SETTLE_TIMEOUT_S:
+                raise CommandRefused(f"drives did not settle within ±{tol} rpm of the ramp's target")
+            return settled
+        if isinstance(step, HoldStep):
+            self._check_furnace_band(step)
+            return self.state is RunState.RUNNING and elapsed >= step.seconds
+        if isinstance(step, WaitFurnaceStep):
+            furnace = c.furnace
+            target = c.furnace_target_c
+            if furnace is not None and target is not None and abs(furnace.temp_c - target) <= step.band_c:
+                return True
+            if elapsed > step.timeout_min * 60.0:
+                raise CommandRefused(
+                    f"furnace did not reach ±{step.band_c} °C of {target} °C within {step.timeout_min:g} min"
+                )
+            return False
+        return self.state is RunState.RUNNING  # a pause step ends when resumed
+
+    def _check_furnace_band(self, step: HoldStep) -> None:
+        c = self.controller
+        furnace, target = c.furnace, c.furnace_target_c
+        if furnace is None or target is None or c.furnace_setpoint_c != target:
+            return
+        band = self._tolerances(step).furnace_c
+        if abs(furnace.temp_c - target) > band:
+            self._step_elapsed_s += self.clock.now() - self._step_started_s
+            self._step_started_s = self.clock.now()
+            reason = f"furnace {furnace.temp_c:.1f} °C left its band {target:.1f} ± {band:.1f} °C: held"
+            self._enter(RunState.HELD, reason)
+            self._write("hold", reason=reason, step=self.index + 1)
+
+    # ------------------------------------------------------------------ progress
+    def progress(self) -> dict[str, Any]:
+        """The run's progress as JSON-ready data."""
+        now = self.clock.now()
+        current: StepPlan | None = self.plan.steps[self.index] if self.index < len(self.plan.steps) else None
+        step_elapsed = self._step_elapsed_s + (now - self._step_started_s if self.state is RunState.RUNNING else 0.0)
+        remaining = sum(s.duration_s for s in self.plan.steps[self.index + 1 :]) + self.plan.stop.duration_s
+        if current is not None:
+            remaining += max(current.duration_s - step_elapsed, 0.0)
+        return {
+            "run_id": self.run_id,
+            "recipe": self.loaded.recipe.recipe.name,
+            "recipe_file": self.loaded.source,
+            "state": str(self.state),
+            "reason": self.reason,
+            "step": min(self.index + 1, len(self.steps)),
+            "steps": len(self.steps),
+            "kind": current.kind if current else None,
+            "elapsed_s": now - self._started_s,
+            "step_elapsed_s": step_elapsed,
+            "remaining_s": remaining if not self.finished else 0.0,
+            "record": str(self.record.path),
+        }
+
+
+def clock_stamp() -> str:
+    """A sortable UTC timestamp for run ids."""
+    import time
+
+    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+
+
+__all__ = ["FINAL", "RecipeRunner", "RunState"]
