@@ -74,6 +74,9 @@ def plan_as_data(loaded: Any, plan: RecipePlan) -> dict[str, Any]:
                 "furnace_c": s.furnace_c,
                 "min_margin_rpm": None if math.isinf(s.min_margin_rpm) else s.min_margin_rpm,
                 "note": s.note,
+                "detached": s.physics.detached if s.physics else None,
+                "impact_rate_hz": s.physics.impact_rate_hz if s.physics else None,
+                "impact_energy_mj": s.physics.mean_impact_energy_j * 1e3 if s.physics else None,
             }
             for s in plan.steps
         ],
@@ -89,7 +92,20 @@ def _plan(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     table = Table(title=f"{data['recipe']} — law {plan.law}, margin {plan.margin:.0%}")
-    for name in ("#", "kind", "start", "duration", "ω_r rpm", "ω_v rpm", "furnace °C", "min margin rpm", "note"):
+    columns = (
+        "#",
+        "kind",
+        "start",
+        "duration",
+        "ω_r rpm",
+        "ω_v rpm",
+        "furnace °C",
+        "min margin rpm",
+        "impacts/s",
+        "energy mJ",
+        "note",
+    )
+    for name in columns:
         table.add_column(name, justify="left" if name in ("kind", "note") else "right")
     for s in data["steps"]:
         table.add_row(
@@ -101,6 +117,8 @@ def _plan(args: argparse.Namespace) -> int:
             f"{s['vibration_rpm']:.1f}",
             "off" if s["furnace_c"] is None else f"{s['furnace_c']:.0f}",
             "standstill" if s["min_margin_rpm"] is None else f"{s['min_margin_rpm']:.1f}",
+            _physics_cell(s["detached"], s["impact_rate_hz"], "{:.1f}"),
+            _physics_cell(s["detached"], s["impact_energy_mj"], "{:.2f}"),
             s["note"],
         )
     table.caption = (
@@ -109,6 +127,12 @@ def _plan(args: argparse.Namespace) -> int:
     stdout_console().print(table)
     stderr_console().print(f"{loaded.source}: sha256 {loaded.sha256[:16]}")
     return int(ExitCode.OK)
+
+
+def _physics_cell(detached: bool | None, value: float | None, fmt: str) -> str:
+    if detached is None or value is None:
+        return "—"
+    return fmt.format(value) if detached else "pinned"
 
 
 def _hms(seconds: float) -> str:

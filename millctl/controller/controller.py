@@ -62,9 +62,6 @@ _WIRE_STATE = {
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm)."""
 
-SETTLE_TIME_CONSTANTS = 5.0
-"""The planner dwells this many drive time constants between one-axis ramps."""
-
 
 class CommandRefused(InterlockError):
     """A command that the current state does not allow; nothing was sent."""
@@ -88,10 +85,7 @@ class Controller:
         self.codec = codec or default_codec()
         self.listener = listener
         self.envelope = Envelope.from_config(config)
-        settle_s = SETTLE_TIME_CONSTANTS * max(
-            config.drives.rotary.time_constant_s, config.drives.vibration.time_constant_s
-        )
-        self.planner = RampPlanner(self.envelope, settle_s=settle_s)
+        self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(self.codec, config.interlock)
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)

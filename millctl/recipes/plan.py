@@ -12,9 +12,12 @@ import math
 from dataclasses import dataclass, field
 
 from millctl.config.models import MillConfig
+from millctl.physics.model import MillModel
+from millctl.physics.telemetry import RevolutionSummary, revolution_summary
 from millctl.recipes.schema import HoldStep, PauseStep, RampStep, Recipe, WaitFurnaceStep
-from millctl.safety import Envelope, InterlockRefused, Verdict
+from millctl.safety import InterlockRefused, Verdict
 from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint, Trajectory
+from millctl.units import rpm_to_rad_s
 
 
 @dataclass(frozen=True)
@@ -50,6 +53,8 @@ class StepPlan:
     min_margin_rpm: float
     trajectory: Trajectory | None = None
     note: str = ""
+    physics: RevolutionSummary | None = None
+    """What the physics model expects at the step's setpoints (level-(b) summary)."""
 
 
 @dataclass(frozen=True)
@@ -83,14 +88,24 @@ class _Walker:
 
     def __init__(self, recipe: Recipe, config: MillConfig) -> None:
         self.recipe = recipe
-        self.envelope = Envelope.from_config(config)
-        self.planner = RampPlanner(self.envelope)
+        self.planner = RampPlanner.from_config(config)
+        self.envelope = self.planner.envelope
         self.t_s = 0.0
         self.point = STANDSTILL
         self.furnace_c: float | None = None
         self.ambient_c = config.furnace.ambient_temp_c
         self.violations: list[Violation] = []
         self.steps: list[StepPlan] = []
+        self.model = MillModel.from_config(config)
+        self._physics: dict[SpeedPoint, RevolutionSummary] = {}
+
+    def physics(self, point: SpeedPoint) -> RevolutionSummary:
+        """The expected per-revolution physics at a speed pair (cached per pair)."""
+        if point not in self._physics:
+            self._physics[point] = revolution_summary(
+                self.model, rpm_to_rad_s(point.omega_r_rpm), rpm_to_rad_s(point.omega_v_rpm)
+            )
+        return self._physics[point]
 
     def ramp(self, index: int, step: RampStep) -> None:
         defaults = self.recipe.defaults
@@ -114,7 +129,19 @@ class _Walker:
             duration = max(duration, self._furnace(index, step))
         margin = move.min_margin_rpm(self.envelope) if move is not None else -math.inf
         self.steps.append(
-            StepPlan(index, "ramp", self.t_s, duration, False, target, self.furnace_c, margin, move, step.note)
+            StepPlan(
+                index,
+                "ramp",
+                self.t_s,
+                duration,
+                False,
+                target,
+                self.furnace_c,
+                margin,
+                move,
+                step.note,
+                self.physics(target),
+            )
         )
         self.t_s += duration
         self.point = target
@@ -134,7 +161,19 @@ class _Walker:
         if self.point.omega_r_rpm == 0.0:
             margin = math.inf
         self.steps.append(
-            StepPlan(index, kind, self.t_s, duration_s, open_ended, self.point, self.furnace_c, margin, None, note)
+            StepPlan(
+                index,
+                kind,
+                self.t_s,
+                duration_s,
+                open_ended,
+                self.point,
+                self.furnace_c,
+                margin,
+                None,
+                note,
+                self.physics(self.point),
+            )
         )
         self.t_s += duration_s
 

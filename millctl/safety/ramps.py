@@ -31,7 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from millctl.config.models import MillConfig
 from millctl.safety.envelope import Envelope, InterlockRefused, Verdict
+
+SETTLE_TIME_CONSTANTS = 5.0
+"""The planner dwells this many drive time constants between one-axis ramps."""
 
 INTERIOR_GRID = 65
 """Points at which the limit is also checked inside an ω_v sweep."""
@@ -121,6 +125,13 @@ class RampPlanner:
         self.resolution_rpm = resolution_rpm
         self.settle_s = settle_s
         """Dwell after each one-axis ramp, so that a lagging drive reaches the corner first (s)."""
+
+    @classmethod
+    def from_config(cls, config: MillConfig, envelope: Envelope | None = None) -> RampPlanner:
+        """The planner every part of millctl uses for a configured mill (settle dwell from the drives)."""
+        drives = config.drives
+        settle_s = SETTLE_TIME_CONSTANTS * max(drives.rotary.time_constant_s, drives.vibration.time_constant_s)
+        return cls(envelope or Envelope.from_config(config), settle_s=settle_s)
 
     def snap(self, point: SpeedPoint) -> SpeedPoint:
         """Round a pair onto the wire grid (what the node will receive)."""
