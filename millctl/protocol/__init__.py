@@ -7,8 +7,8 @@ interfaces (:func:`open_bus`). See docs/protocol.md.
 
 from __future__ import annotations
 
-from millctl.protocol.buslog import RotatingBusLog
 from millctl.protocol.busload import BusLoad, bus_load
+from millctl.protocol.buslog import RotatingBusLog
 from millctl.protocol.codec import DBC_NAME, Codec, Decoded, default_codec
 from millctl.protocol.e2e import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
 from millctl.protocol.errors import ProtocolError, SignalRangeError

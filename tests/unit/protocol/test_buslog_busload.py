@@ -105,3 +105,12 @@ def test_bus_frames_command_lists_every_frame(capsys: pytest.CaptureFixture[str]
     rows = json.loads(capsys.readouterr().out)
     assert [r["name"] for r in rows][:3] == ["EStop", "Command", "Heartbeat"]
     assert all(r["cycle_ms"] for r in rows if r["name"] in ("Heartbeat", "Setpoints", "NodeStatus"))
+
+
+def test_docs_show_the_bus_load_the_command_prints() -> None:
+    text = (REPO / "docs" / "protocol.md").read_text()
+    load = bus_load(CODEC, 500_000)
+    expected = f"periodic frames: {load.periodic_load:.2%}; with every event frame at 10 Hz: {load.total_load:.2%}"
+    assert expected in text, "docs/protocol.md is stale: paste the output of `millctl bus load` again"
+    for kind in ("EStop", "Heartbeat", "SimFault"):
+        assert f"| {kind} |" in text
