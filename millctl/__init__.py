@@ -6,10 +6,23 @@ interlock that keeps the mill inside the eq. 9 detachment envelope lives in
 """
 
 from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from millctl.client import AsyncClient, Client
 
 try:
     __version__ = version("millctl")
 except PackageNotFoundError:  # running from a source tree that was never installed
     __version__ = "0+unknown"
 
-__all__ = ["__version__"]
+__all__ = ["AsyncClient", "Client", "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    """``millctl.Client`` and ``millctl.AsyncClient``, imported on first use (keeps ``import millctl`` light)."""
+    if name in ("Client", "AsyncClient"):
+        from millctl import client
+
+        return getattr(client, name)
+    raise AttributeError(f"module 'millctl' has no attribute {name!r}")

@@ -21,6 +21,8 @@ COMMAND_MODULES = (
     "millctl.cli.limits_cmd",
     "millctl.cli.recipe_cmd",
     "millctl.cli.bus_cmd",
+    "millctl.cli.service_cmd",
+    "millctl.cli.client_cmd",
 )
 """Command modules, in the order ``--help`` lists them."""
 

@@ -1,0 +1,194 @@
+"""``millctl status|set|arm|disarm|stop|estop|reset|watch``: talk to the running service through its API.
+
+One-shot commands take control for their duration and give it back; when
+another client holds it they exit 2 naming the holder. E-stop needs no
+control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections import deque
+from typing import Any
+
+from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.errors import ExitCode
+
+SIMPLE_COMMANDS = {
+    "arm": "arm the node (from DISABLED)",
+    "disarm": "disarm the node (from ARMED at standstill)",
+    "stop": "controlled stop: both drives ramp down inside the envelope, heater off",
+    "estop": "emergency stop (needs no control; always accepted)",
+    "reset": "clear a latched trip (drives at standstill, fresh telemetry)",
+}
+
+
+def _float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} must be a finite number")
+    return value
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add the client commands."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path of the config)")
+    common.add_argument("--json", action="store_true", help="machine-readable output on stdout")
+    take = argparse.ArgumentParser(add_help=False)
+    take.add_argument("--force", action="store_true", help="take over control whose holder's lease has expired")
+
+    status = subparsers.add_parser("status", parents=[common], help="the mill's status, from the running service")
+    status.set_defaults(handler=_status)
+    setp = subparsers.add_parser(
+        "set", parents=[common, take], help="ramp to new speeds (and furnace target); refused outside the envelope"
+    )
+    setp.add_argument("--rot-rpm", type=_float, required=True, help="rotary speed ω_r (rpm)")
+    setp.add_argument("--vib-rpm", type=_float, required=True, help="vibration speed ω_v (rpm)")
+    setp.add_argument("--temp-c", type=_float, help="furnace target (°C)")
+    setp.add_argument("--rot-rate", type=_float, help="rotary ramp rate (rpm/s; default: the drive's maximum)")
+    setp.add_argument("--vib-rate", type=_float, help="vibration ramp rate (rpm/s; default: the drive's maximum)")
+    setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
+    setp.set_defaults(handler=_set)
+    for name, text in SIMPLE_COMMANDS.items():
+        parents = [common] if name == "estop" else [common, take]
+        sub = subparsers.add_parser(name, parents=parents, help=text)
+        sub.set_defaults(handler=_simple, action=name)
+    watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)")
+    watch.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path of the config)")
+    watch.set_defaults(handler=_watch)
+
+
+def _client(args: argparse.Namespace) -> Any:
+    from millctl.client import Client
+
+    return Client(args.socket, config=args.config, name="cli")
+
+
+def _status(args: argparse.Namespace) -> int:
+    with _client(args) as client:
+        status = client.status()
+        control = client.control_state()
+    if args.json:
+        print_json({"status": status, "control": control})
+    else:
+        stdout_console().print(render_status(status, control))
+    return int(ExitCode.OK)
+
+
+def _set(args: argparse.Namespace) -> int:
+    results = []
+    with _client(args) as client, client.control(force=args.force):
+        results.append(client.set_speeds(args.rot_rpm, args.vib_rpm, rotary_rate_rpm_s=args.rot_rate,
+                                         vibration_rate_rpm_s=args.vib_rate, linear=args.linear))
+        if args.temp_c is not None:
+            results.append(client.set_furnace(args.temp_c))
+    _report(args, results)
+    return int(ExitCode.OK)
+
+
+def _simple(args: argparse.Namespace) -> int:
+    with _client(args) as client:
+        if args.action == "estop":
+            result = client.estop()
+        else:
+            with client.control(force=args.force):
+                result = getattr(client, args.action)()
+    _report(args, [result])
+    return int(ExitCode.OK)
+
+
+def _report(args: argparse.Namespace, results: list[dict[str, Any]]) -> None:
+    if args.json:
+        print_json(results if len(results) > 1 else results[0])
+        return
+    out = stdout_console()
+    for result in results:
+        ramp = f" (ramp {result['duration_s']:.1f} s)" if result.get("duration_s") else ""
+        out.print(f"accepted: {result['message']}{ramp}; state {result['state']}", markup=False)
+
+
+def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
+    if value is None:
+        return "—"
+    return f"{value:{fmt}}{unit}"
+
+
+def render_status(status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = ()) -> Any:
+    """A compact rich view: state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
+    from rich.table import Table
+
+    table = Table.grid(padding=(0, 2))
+    table.add_column(style="bold")
+    table.add_column()
+    state = status["state"] + (f" — {status['trip_cause']}" if status.get("trip_cause") else "")
+    table.add_row("state", f"{state}   node {status.get('node_state') or '—'} {' '.join(status['node_faults'])}")
+    if control is not None:
+        holder = control.get("holder") or "nobody"
+        table.add_row("control", holder + (" (lease expired)" if control.get("expired") else ""))
+    table.add_row(
+        "ω_r rotary",
+        f"set {_num(status['setpoint_rotary_rpm'])} → {_num(status['target_rotary_rpm'])}   "
+        f"measured {_num(status['measured_rotary_rpm'])} rpm   torque {_num(status['rotary_torque_nm'], '.2f')} N·m",
+    )
+    table.add_row(
+        "ω_v vibration",
+        f"set {_num(status['setpoint_vibration_rpm'])} → {_num(status['target_vibration_rpm'])}   "
+        f"measured {_num(status['measured_vibration_rpm'])} rpm   ramp {_num(status['ramp_remaining_s'])} s left",
+    )
+    every = "" if status["law_is_every_cycle"] else "  (not the every-cycle bound here)"
+    table.add_row(
+        "limit",
+        f"ω_r ≤ {_num(status['limit_rotary_rpm'])} rpm, margin {_num(status['margin_rpm'])} rpm   "
+        f"law {status['law']}, margin {status['margin']:.0%}{every}",
+    )
+    table.add_row(
+        "furnace",
+        f"{_num(status['furnace_temp_c'], '.1f', ' °C')}   target {_num(status['furnace_target_c'], '.1f', ' °C')}   "
+        f"heater {_num(status['heater_pct'], '.0f', ' %')}",
+    )
+    table.add_row(
+        "physics",
+        f"detached {status['detached'] if status['detached'] is not None else '—'}   θ_d "
+        f"{_num(status['theta_d_deg'], '.1f', '°')}   impacts {_num(status['impact_rate_hz'], '.1f', ' Hz')}   "
+        f"{_num(status['impact_energy_mj'], '.2f', ' mJ')}   shear {_num(status['shear_kpa'], '.1f', ' kPa')}",
+    )
+    links = [
+        f"{name} {_num(link.get('age_s'), '.2f', ' s')}{' STALE' if link.get('stale') else ''}"
+        for name, link in status.get("link", {}).items()
+    ]
+    table.add_row("links", "   ".join(links))
+    for event in events:
+        table.add_row(f"#{event['seq']}", f"[{event['kind']}] {event['source']}: {event['message']}")
+    return table
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from rich.live import Live
+
+    console = stderr_console()
+    events: deque[dict[str, Any]] = deque(maxlen=6)
+    with _client(args) as client:
+        control = client.control_state()
+        status = client.status()
+        try:
+            with Live(render_status(status, control), console=console, refresh_per_second=4) as live:
+                for item in client.stream():
+                    if item["event"] == "event":
+                        events.append(item["data"])
+                        if item["data"]["kind"] == "control":
+                            control = client.control_state()
+                    elif item["event"] == "status":
+                        status = item["data"]
+                    live.update(render_status(status, control, events))
+        except KeyboardInterrupt:
+            return int(ExitCode.OK)
+    console.print("millctl watch: the service closed the stream", markup=False)
+    return int(ExitCode.OK)
+
+
+__all__ = ["register", "render_status"]

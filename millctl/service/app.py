@@ -1,0 +1,305 @@
+"""The service's HTTP API (FastAPI, ``/v1``): status, envelope, control lease, commands, events, stream, recipes.
+
+Commands need the control lease (header ``X-Millctl-Lease``); E-stop needs
+nothing and is always accepted. Every request is validated and every error
+is JSON (see :mod:`millctl.service.errors`). No route, field or flag turns
+the interlock off (SAFETY 14): every command goes through the controller.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+from collections.abc import AsyncIterator
+from typing import Annotated, Any
+
+import numpy as np
+from fastapi import Body, FastAPI, Header, Query, Request
+from fastapi.responses import StreamingResponse
+from starlette.concurrency import run_in_threadpool
+
+from millctl import __version__
+from millctl.controller import Controller
+from millctl.safety import InterlockRefused
+from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
+from millctl.service.journal import finite
+from millctl.service.models import (
+    CheckOut,
+    CheckRequest,
+    CommandOut,
+    ControlOut,
+    EnvelopeOut,
+    EnvelopePoint,
+    EventsOut,
+    FurnaceRequest,
+    LeaseOut,
+    RecipeOut,
+    RecipePauseRequest,
+    RecipeRunRequest,
+    ServiceOut,
+    SetpointsRequest,
+    StatusOut,
+    TakeRequest,
+)
+from millctl.service.runtime import ServiceRuntime
+
+STATUS_PERIOD_S = 0.25
+"""The stream sends a status this often (s)."""
+STREAM_POLL_S = 0.05
+"""The stream looks for new events this often (s)."""
+
+ClientName = Annotated[
+    str | None,
+    Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
+]
+LeaseId = Annotated[str | None, Header(max_length=64, description="the lease id from POST /v1/control/take")]
+
+
+def create_app(runtime: ServiceRuntime) -> FastAPI:
+    """The API of one running service."""
+    app = FastAPI(
+        title="millctl controller service",
+        version=__version__,
+        description="The local API of `millctl serve`: watch the mill, and — holding the control lease — command "
+        "it. Every command goes through the controller's interlock; E-stop is always accepted.",
+    )
+    install_error_handlers(app)
+    rt = runtime
+
+    def source(name: str | None) -> str:
+        return f"api:{name or 'anonymous'}"
+
+    def command(lease: str | None, name: str | None, what: str, action: Any, *, idle: bool = True) -> CommandOut:
+        """Check the lease, then run ``action(controller, source)`` under the lock."""
+        rt.leases.check(lease)
+
+        def run(c: Controller) -> CommandOut:
+            if idle:
+                rt.recipe.require_idle(what)
+            result = action(c, source(name))
+            duration = getattr(result, "duration_s", None)
+            return CommandOut(message=what, state=str(c.state), duration_s=duration)
+
+        return rt.call(run)
+
+    # ------------------------------------------------------------------ reading
+    @app.get("/v1/status", response_model=StatusOut, responses=READ_RESPONSES, tags=["watch"])
+    def status() -> dict[str, Any]:
+        """The controller's status: state, setpoints, measurements, limit and margin, furnace, physics, links."""
+        return rt.status()
+
+    @app.get("/v1/service", response_model=ServiceOut, responses=READ_RESPONSES, tags=["watch"])
+    def service() -> ServiceOut:
+        """The running service: process, config (path, sha256), envelope law and margin, bus, records."""
+        env = rt.controller.envelope
+        return ServiceOut(
+            pid=os.getpid(), version=__version__, started_unix=rt.started_unix, config_path=rt.loaded.source,
+            config_sha256=rt.loaded.sha256, law=env.law.value, margin=env.margin,
+            bus_interface=rt.config.bus.interface, bus_channel=rt.config.bus.channel,
+            embedded_node=rt.node is not None, records_dir=str(rt.records_dir),
+        )
+
+    @app.get("/v1/envelope", response_model=EnvelopeOut, responses=READ_RESPONSES, tags=["envelope"])
+    def envelope(points: Annotated[int, Query(ge=2, le=1001)] = 41) -> EnvelopeOut:
+        """The limit curve the interlock enforces: ω_v grid → ω_r limit, with the law, margin and flags."""
+        env = rt.controller.envelope
+        w_v = np.linspace(0.0, env.vibration_max_rpm, points)
+        limit, law_limit, every = env.omega_r_limit_rpm(w_v), env.law_limit_rpm(w_v), env.every_cycle(w_v)
+        return EnvelopeOut(
+            law=env.law.value, description=env.description, margin=env.margin, rotary_max_rpm=env.rotary_max_rpm,
+            vibration_max_rpm=env.vibration_max_rpm, furnace_min_c=env.furnace_min_c, furnace_max_c=env.furnace_max_c,
+            max_heating_rate_c_per_min=env.max_heating_rate_c_per_min,
+            points=[
+                EnvelopePoint(omega_v_rpm=float(w_v[i]), omega_r_limit_rpm=finite(float(limit[i])),
+                              law_limit_rpm=finite(float(law_limit[i])), law_is_every_cycle=bool(every[i]))
+                for i in range(points)
+            ],
+        )
+
+    @app.post("/v1/envelope/check", response_model=CheckOut, responses=READ_RESPONSES, tags=["envelope"])
+    def check(body: CheckRequest) -> CheckOut:
+        """Check an operating point against the envelope; nothing is commanded."""
+        verdict = rt.controller.envelope.check(body.rotary_rpm, body.vibration_rpm, body.temp_c)
+        refusals = refusal_list(InterlockRefused(verdict)) if not verdict.ok else []
+        return CheckOut(ok=verdict.ok, reason=verdict.reason(), omega_r_limit_rpm=finite(verdict.omega_r_limit_rpm),
+                        margin_rpm=finite(verdict.margin_rpm), refusals=refusals)
+
+    @app.get("/v1/events", response_model=EventsOut, responses=READ_RESPONSES, tags=["watch"])
+    def events(
+        after: Annotated[int, Query(ge=0)] = 0, limit: Annotated[int, Query(ge=1, le=2000)] = 500
+    ) -> EventsOut:
+        """Recorded events with a sequence number above ``after``, oldest first (from a ring buffer)."""
+        found = rt.journal.after(after, limit)
+        return EventsOut.model_validate({"events": found, "last_seq": rt.journal.last_seq})
+
+    @app.get(
+        "/v1/stream",
+        response_class=StreamingResponse,
+        responses={200: {"content": {"text/event-stream": {}}, "description": "server-sent events"},
+                   **READ_RESPONSES},
+        tags=["watch"],
+    )
+    async def stream(
+        request: Request, count: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
+    ) -> StreamingResponse:
+        """Server-sent events: ``status`` every 0.25 s and every ``event`` as it happens (``count``: then stop)."""
+        return StreamingResponse(_sse(request, rt, count), media_type="text/event-stream")
+
+    # ------------------------------------------------------------------ control lease
+    @app.get("/v1/control", response_model=ControlOut, responses=READ_RESPONSES, tags=["control"])
+    def control() -> ControlOut:
+        """Who holds control, and for how long."""
+        return _control_out(rt)
+
+    @app.post("/v1/control/take", response_model=LeaseOut, responses=COMMAND_RESPONSES, tags=["control"])
+    def take(
+        x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None,
+        body: Annotated[TakeRequest | None, Body()] = None,
+    ) -> LeaseOut:
+        """Take control (or renew it); ``force`` takes over an expired lease, never a live one."""
+        holder = source(x_millctl_client)
+        lease, taken_from = rt.leases.take(holder, lease_id=x_millctl_lease, force=bool(body and body.force))
+        if x_millctl_lease != lease.lease_id:  # a new lease, not a renewal
+            note = f" (took over the expired lease of {taken_from})" if taken_from else ""
+            rt.journal.add("control", holder, f"control taken by {holder}{note}", taken_from=taken_from)
+        return LeaseOut(lease_id=lease.lease_id, holder=lease.holder, ttl_s=lease.ttl_s,
+                        expires_in_s=lease.remaining_s(rt.clock.now()))
+
+    @app.post("/v1/control/release", response_model=ControlOut, responses=COMMAND_RESPONSES, tags=["control"])
+    def release(x_millctl_lease: LeaseId = None) -> ControlOut:
+        """Give control back (only its holder can)."""
+        lease = rt.leases.release(x_millctl_lease)
+        rt.journal.add("control", lease.holder, f"control released by {lease.holder}")
+        return _control_out(rt)
+
+    # ------------------------------------------------------------------ commands
+    @app.post("/v1/arm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def arm(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+        """Arm the node (from DISABLED)."""
+        return command(x_millctl_lease, x_millctl_client, "arm", lambda c, s: c.arm(source=s))
+
+    @app.post("/v1/disarm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def disarm(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+        """Disarm the node (from ARMED at standstill)."""
+        return command(x_millctl_lease, x_millctl_client, "disarm", lambda c, s: c.disarm(source=s))
+
+    @app.post("/v1/stop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def stop(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+        """Controlled stop (stop category 1): both drives ramp down inside the envelope, heater off."""
+
+        def act(c: Controller, s: str) -> None:
+            rt.recipe.abort_if_active(s)
+            c.stop(source=s)
+
+        return command(x_millctl_lease, x_millctl_client, "stop", act, idle=False)
+
+    @app.post("/v1/reset", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def reset(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+        """Clear a latched trip (fresh telemetry, both drives at standstill)."""
+        return command(x_millctl_lease, x_millctl_client, "reset", lambda c, s: c.reset(source=s))
+
+    @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def estop(x_millctl_client: ClientName = None) -> CommandOut:
+        """Emergency stop: needs no lease and is always accepted."""
+        with rt.lock:
+            rt.recipe.abort_if_active(source(x_millctl_client))
+            rt.controller.estop(source=source(x_millctl_client))
+            return CommandOut(message="E-STOP", state=str(rt.controller.state))
+
+    @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def setpoints(
+        body: SetpointsRequest, x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None
+    ) -> CommandOut:
+        """Ramp to new drive speeds (rpm); refused with the interlock's reason when outside the envelope."""
+        return command(
+            x_millctl_lease, x_millctl_client,
+            f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm",
+            lambda c, s: c.set_speeds(body.rotary_rpm, body.vibration_rpm, rotary_rate_rpm_s=body.rotary_rate_rpm_s,
+                                      vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear, source=s),
+        )
+
+    @app.post("/v1/furnace", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
+    def furnace(
+        body: FurnaceRequest, x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None
+    ) -> CommandOut:
+        """Set the furnace target (°C, ramped at the heating rate), or null to turn the heater off."""
+        what = "heater off" if body.temp_c is None else f"furnace to {body.temp_c:.1f} °C"
+        return command(x_millctl_lease, x_millctl_client, what,
+                       lambda c, s: c.set_furnace(body.temp_c, rate_c_per_min=body.rate_c_per_min, source=s))
+
+    # ------------------------------------------------------------------ recipes
+    def recipe_action(lease: str | None, action: Any) -> RecipeOut:
+        rt.leases.check(lease)
+        progress = rt.call(lambda c: action())
+        return RecipeOut(active=rt.recipe.active, progress=finite(progress))
+
+    @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
+    def recipe() -> RecipeOut:
+        """Progress of the current (or last) recipe run."""
+        with rt.lock:
+            progress = rt.recipe.progress()
+            return RecipeOut(active=rt.recipe.active, progress=finite(progress or {}))
+
+    @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
+    def recipe_run(body: RecipeRunRequest, x_millctl_client: ClientName = None,
+                   x_millctl_lease: LeaseId = None) -> RecipeOut:
+        """Load, pre-flight and start a recipe (refused with every violation if its plan leaves the envelope)."""
+        return recipe_action(x_millctl_lease, lambda: rt.recipe.run(body.path, rt.config, source(x_millctl_client)))
+
+    @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
+    def recipe_pause(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None,
+                     body: Annotated[RecipePauseRequest | None, Body()] = None) -> RecipeOut:
+        """Pause the run at the next step boundary, or ``now`` (holding the current setpoints)."""
+        now = bool(body and body.now)
+        return recipe_action(x_millctl_lease, lambda: rt.recipe.pause(now, source(x_millctl_client)))
+
+    @app.post("/v1/recipe/resume", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
+    def recipe_resume(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> RecipeOut:
+        """Resume a paused or held run."""
+        return recipe_action(x_millctl_lease, lambda: rt.recipe.resume(source(x_millctl_client)))
+
+    @app.post("/v1/recipe/abort", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
+    def recipe_abort(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> RecipeOut:
+        """Abort the run with a controlled stop."""
+        return recipe_action(x_millctl_lease, lambda: rt.recipe.abort(source(x_millctl_client)))
+
+    return app
+
+
+def _control_out(rt: ServiceRuntime) -> ControlOut:
+    lease = rt.leases.current
+    if lease is None:
+        return ControlOut(held=False, holder=None, expires_in_s=None, expired=False)
+    remaining = lease.remaining_s(rt.clock.now())
+    return ControlOut(held=True, holder=lease.holder, expires_in_s=remaining, expired=remaining <= 0.0)
+
+
+def _sse_message(kind: str, data: Any, event_id: int | None = None) -> str:
+    head = f"id: {event_id}\n" if event_id is not None else ""
+    return f"{head}event: {kind}\ndata: {json.dumps(data, ensure_ascii=False, default=str)}\n\n"
+
+
+async def _sse(request: Request, rt: ServiceRuntime, count: int | None) -> AsyncIterator[str]:
+    """Status every STATUS_PERIOD_S and every new event, until the client leaves or the service stops."""
+    loop = asyncio.get_running_loop()
+    last_seq = rt.journal.last_seq
+    next_status_s = loop.time()
+    sent = 0
+    while not rt.stopping and (count is None or sent < count):
+        for event in rt.journal.after(last_seq):
+            last_seq = event["seq"]
+            yield _sse_message("event", event, last_seq)
+            sent += 1
+            if count is not None and sent >= count:
+                return
+        if loop.time() >= next_status_s:
+            yield _sse_message("status", await run_in_threadpool(rt.status))
+            sent += 1
+            next_status_s += STATUS_PERIOD_S
+        if await request.is_disconnected():
+            return
+        await asyncio.sleep(STREAM_POLL_S)
+
+
+__all__ = ["STATUS_PERIOD_S", "create_app"]

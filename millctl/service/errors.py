@@ -1,0 +1,122 @@
+"""How the API reports errors: JSON ``{"code", "message", "field"}`` with a stable code and the right status.
+
+=====  ======================  ====================================================
+409    ``interlock_refused``   the envelope refused it (with every refusal)
+409    ``recipe_refused``      a recipe's pre-flight plan leaves the envelope
+409    ``wrong_state``         the state machine (or a running recipe) refused it
+422    ``invalid_request``     validation failed (``field`` names the field)
+422    ``invalid_input``       a file the request names is missing or invalid
+423    ``control_held``        another client holds control (``holder`` names it)
+401    ``unauthorized``        TCP without the right bearer token (see auth.py)
+503    ``node_unreachable``    no node on the bus, or the control loop is down
+=====  ======================  ====================================================
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException
+
+from millctl.errors import InterlockError, InvalidInputError
+from millctl.safety import InterlockRefused
+from millctl.service.lease import LeaseError
+from millctl.service.models import ErrorBody
+from millctl.service.recipe import RecipeRefused
+from millctl.service.runtime import NodeUnreachable
+
+
+def _num(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def error_response(status: int, code: str, message: str, **extra: Any) -> JSONResponse:
+    """A JSON error response in the one shape every error has."""
+    body = ErrorBody(code=code, message=message, **extra)
+    return JSONResponse(status_code=status, content=body.model_dump(exclude_none=True))
+
+
+def refusal_list(refused: InterlockRefused) -> list[dict[str, Any]]:
+    """The interlock's refusals as plain data: quantity, value, limit, unit, reason."""
+    return [
+        {"quantity": r.quantity, "value": _num(r.value), "limit": _num(r.limit), "unit": r.unit, "reason": r.reason}
+        for r in refused.verdict.refusals
+    ]
+
+
+async def _validation(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    errors = exc.errors()
+    first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
+    field = ".".join(str(part) for part in first.get("loc", ()))
+    parts = [f"{'.'.join(str(p) for p in e.get('loc', ()))}: {e.get('msg', '')}" for e in errors[:5]]
+    return error_response(422, "invalid_request", "; ".join(parts) or "invalid request", field=field or None)
+
+
+async def _interlock_refused(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, InterlockRefused)
+    refusals = refusal_list(exc)
+    field = refusals[0]["quantity"] if refusals else None
+    return error_response(409, "interlock_refused", str(exc), field=field, refusals=refusals)
+
+
+async def _recipe_refused(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RecipeRefused)
+    refusals = [
+        {"quantity": v.quantity, "value": _num(v.value), "limit": _num(v.limit), "unit": "", "reason": str(v)}
+        for v in exc.violations
+    ]
+    return error_response(409, "recipe_refused", str(exc), field="path", refusals=refusals)
+
+
+async def _lease(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, LeaseError)
+    return error_response(423, "control_held", str(exc), field="X-Millctl-Lease", holder=exc.holder)
+
+
+async def _interlock(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(409, "wrong_state", str(exc))
+
+
+async def _invalid_input(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(422, "invalid_input", str(exc), field="path")
+
+
+async def _unreachable(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(503, "node_unreachable", str(exc))
+
+
+async def _http(request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, HTTPException)
+    return error_response(exc.status_code, f"http_{exc.status_code}", str(exc.detail))
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Map every exception the routes may raise to its JSON error (the most specific class wins)."""
+    app.add_exception_handler(RequestValidationError, _validation)
+    app.add_exception_handler(InterlockRefused, _interlock_refused)
+    app.add_exception_handler(RecipeRefused, _recipe_refused)
+    app.add_exception_handler(LeaseError, _lease)
+    app.add_exception_handler(InterlockError, _interlock)
+    app.add_exception_handler(InvalidInputError, _invalid_input)
+    app.add_exception_handler(NodeUnreachable, _unreachable)
+    app.add_exception_handler(HTTPException, _http)
+
+
+ERROR = {"model": ErrorBody}
+READ_RESPONSES: dict[int | str, dict[str, Any]] = {
+    401: {**ERROR, "description": "TCP request without the right bearer token"},
+    422: {**ERROR, "description": "invalid request (the field is named)"},
+}
+COMMAND_RESPONSES: dict[int | str, dict[str, Any]] = {
+    **READ_RESPONSES,
+    409: {**ERROR, "description": "refused by the interlock (with its reason and refusals) or by the state"},
+    423: {**ERROR, "description": "control is held by another client (the holder is named), or no lease"},
+    503: {**ERROR, "description": "the node is unreachable or the control loop is down"},
+}
+
+__all__ = ["COMMAND_RESPONSES", "ERROR", "READ_RESPONSES", "error_response", "install_error_handlers", "refusal_list"]

@@ -1,0 +1,116 @@
+"""The service's recipe slot: at most one :class:`~millctl.recipes.runner.RecipeRunner` at a time, in the loop.
+
+A recipe is loaded and pre-flighted against the service's own configuration
+before it may start; a plan with any violation is refused with every one of
+them. All methods are called under the runtime's lock.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+from millctl.clock import Clock
+from millctl.config.models import MillConfig
+from millctl.controller import CommandRefused, Controller
+from millctl.errors import InterlockError
+from millctl.recipes import load_recipe, plan_recipe
+from millctl.recipes.plan import Violation
+from millctl.recipes.runner import RecipeRunner
+
+log = logging.getLogger(__name__)
+
+
+class RecipeRefused(InterlockError):
+    """A recipe whose pre-flight plan leaves the envelope; it was not started."""
+
+    def __init__(self, source: str, law: str, violations: tuple[Violation, ...]) -> None:
+        self.violations = violations
+        lines = "; ".join(str(v) for v in violations)
+        super().__init__(f"recipe {source} refused by the pre-flight check under {law}: {lines}")
+
+
+class RecipeSlot:
+    """Holds the current (or last finished) recipe run of the service."""
+
+    def __init__(self, controller: Controller, clock: Clock, records_dir: Path, config_sha256: str) -> None:
+        self.controller = controller
+        self.clock = clock
+        self.records_dir = records_dir
+        self.config_sha256 = config_sha256
+        self.runner: RecipeRunner | None = None
+
+    @property
+    def active(self) -> bool:
+        """True while a run is in progress (not yet finished)."""
+        return self.runner is not None and not self.runner.finished
+
+    def require_idle(self, what: str) -> None:
+        """Refuse a manual command while a recipe drives the mill (stop and E-stop are never refused)."""
+        if self.runner is not None and self.active:
+            raise CommandRefused(
+                f"{what} refused: recipe run {self.runner.run_id} is {self.runner.state}; pause or abort it first"
+            )
+
+    def run(self, path: str, config: MillConfig, source: str) -> dict[str, Any]:
+        """Load, pre-flight and start a recipe; return its progress."""
+        if self.runner is not None and self.active:
+            raise CommandRefused(f"recipe run {self.runner.run_id} is still {self.runner.state}: one run at a time")
+        loaded = load_recipe(path)
+        plan = plan_recipe(loaded.recipe, config)
+        if not plan.ok:
+            raise RecipeRefused(loaded.source, plan.law, plan.violations)
+        self.runner = RecipeRunner(
+            self.controller,
+            loaded,
+            plan,
+            self.clock,
+            records_dir=self.records_dir,
+            config_sha256=self.config_sha256,
+            source=source,
+        )
+        return self.runner.progress()
+
+    def _require_runner(self) -> RecipeRunner:
+        if self.runner is None:
+            raise CommandRefused("no recipe run: start one first (POST /v1/recipe/run)")
+        return self.runner
+
+    def pause(self, now: bool, source: str) -> dict[str, Any]:
+        """Pause the run (now, or at the next step boundary)."""
+        runner = self._require_runner()
+        runner.pause(now=now, source=source)
+        return runner.progress()
+
+    def resume(self, source: str) -> dict[str, Any]:
+        """Resume a paused or held run."""
+        runner = self._require_runner()
+        runner.resume(source=source)
+        return runner.progress()
+
+    def abort(self, source: str) -> dict[str, Any]:
+        """Abort the run with a controlled stop."""
+        runner = self._require_runner()
+        runner.abort(source=source)
+        return runner.progress()
+
+    def abort_if_active(self, source: str) -> None:
+        """Abort an active run before a stop, an E-stop or a shutdown (never raises)."""
+        if self.runner is not None and self.active:
+            try:
+                self.runner.abort(source=source)
+            except InterlockError as exc:
+                log.warning("recipe abort by %s: %s", source, exc)
+
+    def progress(self) -> dict[str, Any] | None:
+        """Progress of the current or last run, or None before the first."""
+        return self.runner.progress() if self.runner is not None else None
+
+    def tick(self) -> None:
+        """Step the runner (after the controller's tick)."""
+        if self.runner is not None and not self.runner.finished:
+            self.runner.tick()
+
+
+__all__ = ["RecipeRefused", "RecipeSlot"]
