@@ -94,18 +94,48 @@ def _monotone_pieces_root(f: TrigSum, a: float, b: float) -> float | None:
     return None
 
 
+def _nudge(f: TrigSum, t: float, horizon_s: float, sign: float) -> float | None:
+    """The first time from t on where sign·f > 0, stepping geometrically off a root."""
+    step = max(abs(t), 1.0) * 1e-13
+    while sign * f(t) <= 0.0:
+        if t >= horizon_s:
+            return None
+        t, step = t + step, 2.0 * step
+    return t
+
+
+def _rearm(f: TrigSum, t_start_s: float, horizon_s: float) -> float | None:
+    """Skip the current dip of f: the first time after t_start at which f is > 0 again after having been < 0."""
+    t = t_start_s
+    if f(t) >= 0.0:
+        down = first_falling_zero(f, t, horizon_s) if f(t) > 0.0 else t
+        if down is None:
+            return None
+        found = _nudge(f, down, horizon_s, -1.0)
+        if found is None:
+            return None
+        t = found
+    neg = TrigSum(-f.constant, tuple(-a for a in f.amplitudes), f.frequencies_rad_s, f.phases_rad)
+    up = first_falling_zero(neg, t, horizon_s)
+    return None if up is None else _nudge(f, up, horizon_s, 1.0)
+
+
 def find_detachment(
     scene: Scene,
     theta0_rad: float | None = None,
     t_start_s: float = 0.0,
     horizon_s: float | None = None,
     variant: ModelVariant | None = None,
+    rearm: bool = False,
 ) -> Detachment:
     """First detachment of a rod pinned at θ0 + ω_r t from t_start on (eq. 7 for ``paper``, N = 0 for ``corrected``).
 
     ``theta0_rad`` is the rod's angle at t = 0 (default: the scene's θ0). The
     horizon defaults to one revolution after t_start (2π/ω_r; one cam period at
     standstill of the vial, and 1 s when both speeds are zero).
+    With ``rearm`` (a rod whose free flight would enter the wall at once) the
+    rod stays pinned through the current dip of N: it waits for N to fall below
+    zero (if it has not yet) and to rise above zero again.
     """
     theta0 = scene.theta0_rad if theta0_rad is None else theta0_rad
     f = normal_force_per_mass(scene, theta0, variant)
@@ -123,6 +153,11 @@ def find_detachment(
         alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t) % (2.0 * math.pi)
         return Detachment(True, t, theta, alpha, horizon_s, at_start)
 
+    if rearm:
+        rearmed = _rearm(f, t_start_s, horizon_s)
+        if rearmed is None:
+            return Detachment(False, math.nan, math.nan, math.nan, horizon_s)
+        t_start_s = rearmed
     if f(t_start_s) <= 0.0:
         return _result(t_start_s, at_start=True)
     root = first_falling_zero(f, t_start_s, horizon_s)

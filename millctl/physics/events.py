@@ -107,11 +107,12 @@ def _scan_arrays(scene: Scene, a: RodState, b: RodState | None, t: np.ndarray) -
     return dx * dx + dy * dy - scene.model.contact_distance_m**2, 2.0 * (dx * dvx + dy * dvy), v2
 
 
-def _root(f: Callable[[float], float], a: float, b: float) -> float:
+def _root(f: Callable[[float], float], a: float, b: float, tol_s: float = 0.0) -> float:
+    """Root by brentq to ``tol_s`` (s); 0 means as tight as floating point allows (≈ 4 ulp)."""
     fb = f(b)
     if fb == 0.0:
         return b
-    return float(brentq(f, a, b, xtol=_XTOL_S, rtol=_RTOL))
+    return float(brentq(f, a, b, xtol=max(tol_s, _XTOL_S), rtol=_RTOL))
 
 
 def first_contact_time(
@@ -197,6 +198,8 @@ def earliest_contact(
     t_end_s: float,
     n_d: dict[int, float] | None = None,
     rods: list[int] | None = None,
+    excluded: set[tuple[int, int]] | None = None,
+    tol_s: float = 0.0,
 ) -> Contact | None:
     """The first contact in [t_start, t_end] among the given states (each rod with its own state).
 
@@ -204,7 +207,9 @@ def earliest_contact(
     are then resolved exactly (brentq) in time order. Pairs of two pinned rods
     never touch (they move together). ``rods`` limits the search to contacts
     that involve those rods (default: every flying rod). ``n_d`` maps a rod that
-    departs from the wall at t_start to r0·N_true/m there.
+    departs from the wall at t_start to r0·N_true/m there. Pairs (i < j) in
+    ``excluded`` are not tested. ``tol_s`` is the root finder's absolute time
+    tolerance (0: ≈ 4 ulp).
     """
     n_d = n_d or {}
     flying = [i for i, s in enumerate(states) if isinstance(s, FlightState)]
@@ -216,7 +221,7 @@ def earliest_contact(
     for i in movers:
         for j in range(len(states)):
             key = (min(i, j), max(i, j))
-            if j != i and key not in seen:
+            if j != i and key not in seen and key not in (excluded or ()):
                 seen.add(key)
                 pairs.append((i, j))
     funcs = [_pair_functions(scene, states, i, j, t_start_s, n_d.get(i, 0.0)) for i, j in pairs]
@@ -260,7 +265,7 @@ def earliest_contact(
             if best is not None and t_before[k] >= best[0]:
                 break
             for p in np.flatnonzero(candidates[:, k]):
-                t_hit = _resolve(funcs[p], float(t_before[k]), float(ts[k]))
+                t_hit = _resolve(funcs[p], float(t_before[k]), float(ts[k]), tol_s)
                 if t_hit is not None and (best is None or t_hit < best[0]):
                     best = (t_hit, int(p))
         if best is not None:
@@ -290,17 +295,20 @@ def _pair_functions(
 
 
 def _resolve(
-    funcs: tuple[Callable[[float], float], Callable[[float], float], Callable[[float], float]], a: float, b: float
+    funcs: tuple[Callable[[float], float], Callable[[float], float], Callable[[float], float]],
+    a: float,
+    b: float,
+    tol_s: float = 0.0,
 ) -> float | None:
     """Exact contact time in [a, b] for one candidate interval, or None (a minimum that stays apart)."""
     sign_sep, _, dsep = funcs
     if sign_sep(b) <= 0.0:
-        return _root(sign_sep, a, b)
+        return _root(sign_sep, a, b, tol_s)
     da, db = dsep(a), dsep(b)
     if da < 0.0 < db:
         t_m = _root(dsep, a, b)
         if sign_sep(t_m) <= 0.0:
-            return _root(sign_sep, a, t_m)
+            return _root(sign_sep, a, t_m, tol_s)
     return None
 
 

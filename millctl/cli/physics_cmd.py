@@ -1,0 +1,156 @@
+"""``millctl physics``: first detachment, flight and first impact of the configured mill, and its telemetry."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from typing import Any
+
+from millctl.cli.output import print_json, stdout_console
+from millctl.errors import ExitCode
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} must be finite")
+    return value
+
+
+def _nonnegative(text: str) -> float:
+    value = _finite(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f"{text} must be ≥ 0")
+    return value
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``physics``."""
+    parser = subparsers.add_parser(
+        "physics",
+        help="first detachment, flight and first impact at given speeds, and the per-revolution summary",
+        description=(
+            "Run the physics engine (docs/model.md) for the configured mill: the first detachment "
+            "(or that the rods stay pinned), the flight time, the first impact and the level-(b) summary."
+        ),
+    )
+    parser.add_argument("--rot-rpm", type=_nonnegative, required=True, metavar="RPM", help="vial speed ω_r")
+    parser.add_argument("--vib-rpm", type=_nonnegative, required=True, metavar="RPM", help="cam speed ω_v")
+    parser.add_argument("--variant", choices=["paper", "corrected"], help="physics (default: the configured one)")
+    parser.add_argument("--theta0-deg", type=_finite, default=-90.0, help="rod 0's initial angle (default −90, bottom)")
+    parser.add_argument("--alpha0-deg", type=_finite, default=0.0, help="initial cam phase (default 0)")
+    parser.add_argument(
+        "--method",
+        choices=["exact", "legacy", "legacy-interp", "legacy-arcs", "ivp"],
+        default="exact",
+        help="collision scheme (legacy: the paper's fixed step)",
+    )
+    parser.add_argument("--dt", type=_nonnegative, default=1e-4, metavar="S", help="legacy time step (default 1e-4 s)")
+    parser.add_argument("--q", type=int, default=360, help="legacy-arcs: number of wall arcs (default 360)")
+    parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.set_defaults(handler=_run)
+
+
+def physics_report(args: argparse.Namespace) -> dict[str, Any]:
+    """Compute the report as plain data."""
+    from millctl.config import ModelVariant, load_config
+    from millctl.physics.methods import first_impact
+    from millctl.physics.model import MillModel, Scene
+    from millctl.physics.simulate import simulate
+    from millctl.physics.telemetry import revolution_summary
+    from millctl.units import rpm_to_rad_s
+
+    loaded = load_config(args.config)
+    model = MillModel.from_config(loaded.config)
+    if args.variant:
+        model = dataclasses.replace(model, variant=ModelVariant(args.variant))
+    w_r, w_v = rpm_to_rad_s(args.rot_rpm), rpm_to_rad_s(args.vib_rpm)
+    scene = Scene(model, w_r, w_v, math.radians(args.theta0_deg), math.radians(args.alpha0_deg))
+    run = simulate(scene, 5.0, stop_after_first=True)
+    detachment = None
+    if len(run.detachments):
+        d = run.detachments[0]
+        detachment = {
+            "rod": int(d["rod"]),
+            "time_s": float(d["time_s"]),
+            "theta_d_deg": math.degrees(float(d["theta_rad"])),
+            "alpha_d_deg": math.degrees(float(d["alpha_rad"])),
+        }
+    kwargs: dict[str, Any] = {}
+    if args.method.startswith("legacy"):
+        kwargs["dt"] = args.dt
+    if args.method == "legacy-arcs":
+        kwargs["q"] = args.q
+    event = first_impact(scene, args.method, **kwargs)
+    impact = None
+    if event is not None:
+        departed = {int(r["rod"]): float(r["time_s"]) for r in run.detachments}
+        t_d = departed.get(event.rod, math.nan)
+        impact = {
+            "rod": event.rod,
+            "partner": "wall" if event.partner < 0 else f"rod {event.partner}",
+            "time_s": event.time_s,
+            "flight_time_s": event.time_s - t_d,
+            "contact_x_m": event.x_m,
+            "contact_y_m": event.y_m,
+            "normal_velocity_m_s": event.normal_velocity_m_s,
+            "energy_j": event.energy_j,
+        }
+    summary = revolution_summary(model, w_r, w_v)
+    return {
+        "config": loaded.source,
+        "variant": model.variant.value,
+        "method": args.method,
+        "rot_rpm": args.rot_rpm,
+        "vib_rpm": args.vib_rpm,
+        "theta0_deg": args.theta0_deg,
+        "alpha0_deg": args.alpha0_deg,
+        "pinned": detachment is None,
+        "first_detachment": detachment,
+        "first_impact": impact,
+        "summary": {
+            k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in dataclasses.asdict(summary).items()
+        },
+    }
+
+
+def _run(args: argparse.Namespace) -> int:
+    report = physics_report(args)
+    if args.json:
+        print_json(report)
+        return int(ExitCode.OK)
+    out = stdout_console()
+    out.print(
+        f"{report['variant']} physics, {report['method']} events: ω_r = {report['rot_rpm']:g} rpm, "
+        f"ω_v = {report['vib_rpm']:g} rpm, θ0 = {report['theta0_deg']:g}°, α0 = {report['alpha0_deg']:g}°"
+    )
+    det = report["first_detachment"]
+    if det is None:
+        out.print("first detachment: none within 5 s — the rods stay pinned to the wall")
+    else:
+        out.print(
+            f"first detachment: rod {det['rod']} at t = {det['time_s']:.6f} s, "
+            f"θ_d = {det['theta_d_deg']:.3f}°, α_d = {det['alpha_d_deg']:.3f}°"
+        )
+    imp = report["first_impact"]
+    if imp is None:
+        out.print("first impact: none")
+    else:
+        out.print(f"flight time: {imp['flight_time_s'] * 1e3:.4f} ms (rod {imp['rod']})")
+        out.print(
+            f"first impact: rod {imp['rod']} on the {imp['partner']} at t = {imp['time_s']:.6f} s, contact "
+            f"({imp['contact_x_m'] * 1e3:.3f}, {imp['contact_y_m'] * 1e3:.3f}) mm, "
+            f"v_n = {imp['normal_velocity_m_s']:.4f} m/s, energy = {imp['energy_j'] * 1e3:.4f} mJ"
+        )
+    s = report["summary"]
+    theta = "—" if s["theta_d_rad"] is None else f"{math.degrees(s['theta_d_rad']):.2f}°"
+    out.print(
+        f"per revolution: {'detached' if s['detached'] else 'pinned'}, θ_d = {theta}, "
+        f"impacts {s['impact_rate_hz']:.3f} Hz, mean energy {s['mean_impact_energy_j'] * 1e3:.4f} mJ, "
+        f"power {s['impact_power_w'] * 1e3:.4f} mW, mean shear {s['mean_shear_pa'] / 1e6:.3f} MPa"
+    )
+    return int(ExitCode.OK)

@@ -1,0 +1,159 @@
+"""The paper's own collision schemes, kept as ``legacy`` for comparison (eqs 14–17).
+
+Fixed time step dt from the first detachment; after every step the paper's
+check is applied in absolute (lab) coordinates, as the paper writes it:
+
+* rods: (x_1 − x_i)² + (y_1 − y_i)² ≤ (2 r_r)² (eq. 14, with the corrected contact
+  distance 2 r_r);
+* wall, ``legacy``: |p − c|² ≥ r0² (the exact circle, checked at step ends);
+* wall, ``legacy-arcs``: the wall as q points on the bore (radius r_v), anchored at
+  each rod's detachment point and turning with the vial (eq. 15 with the angles
+  θ_d + (j − 1)2π/q + ω_r τ), contact when a point is within r_r (eq. 17).
+
+On the first step that passes a check the collision is placed at the average of
+the step's end points (time, contact point, velocities): first order in dt. With
+``interpolate=True`` the time is instead the linear interpolation of the
+separation between the end points (second order), the method's optional upgrade.
+Detachment times are the exact ones, so only the collision schemes differ.
+Absolute coordinates and the check at every step make a departing rod look
+touching when dt is tiny (rounding of l + r0 swamps the τ³ gap): the failure
+MODEL-NOTES warns about, which the exact engine avoids.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from millctl.errors import PhysicsInputError
+from millctl.physics.detachment import find_detachment
+from millctl.physics.flight import FlightState, WallState, depart
+from millctl.physics.model import Scene
+
+FloatArray = NDArray[np.float64]
+_CHUNK = 256
+
+
+def _lab_arrays(scene: Scene, wall: WallState, flight: FlightState | None, ts: FloatArray) -> tuple[FloatArray, ...]:
+    """Absolute (x, y, vx, vy) of one rod at times ts: pinned before its detachment, flying after."""
+    xw, yw, vxw, vyw = wall.rel_array(scene, ts)
+    if flight is not None:
+        xf, yf, vxf, vyf = flight.rel_array(scene, ts)
+        flying = ts >= flight.t0_s
+        xw, yw = np.where(flying, xf, xw), np.where(flying, yf, yw)
+        vxw, vyw = np.where(flying, vxf, vxw), np.where(flying, vyf, vyw)
+    m = scene.model
+    alpha = scene.alpha0_rad + scene.omega_v_rad_s * ts
+    yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * np.sin(alpha)
+    vyc = m.eccentricity_m * scene.omega_v_rad_s * np.cos(alpha)
+    return xw, yc + yw, vxw, vyc + vyw, yc, vyc
+
+
+def legacy_first_contact(
+    scene: Scene, dt_s: float, q: int | None = None, t_end_s: float = 5.0, interpolate: bool = False
+) -> tuple[float, int, int, float, float, float, float] | None:
+    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod) of the first contact, or None.
+
+    ``q`` None uses the exact circle for the wall; an integer uses q arcs.
+    """
+    if not (math.isfinite(dt_s) and dt_s > 0.0):
+        raise PhysicsInputError(f"dt = {dt_s} s must be a finite step > 0")
+    if q is not None and q < 3:
+        raise PhysicsInputError(f"q = {q} arcs must be ≥ 3")
+    n = scene.model.n_rods
+    walls = [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(n)]
+    flights: list[FlightState | None] = []
+    for i in range(n):
+        det = find_detachment(scene, walls[i].theta0_rad, 0.0, t_end_s)
+        flights.append(depart(scene, walls[i], det.time_s) if det.detached else None)
+    starts = [f.t0_s for f in flights if f is not None]
+    if not starts:
+        return None
+    t0 = min(starts)
+    k0 = 1
+    while t0 + (k0 - 1) * dt_s < t_end_s:
+        ts = t0 + dt_s * np.arange(k0 - 1, k0 + _CHUNK, dtype=float)  # one step of overlap
+        lab = [_lab_arrays(scene, walls[i], flights[i], ts) for i in range(n)]
+        seps = _separations(scene, lab, flights, ts, q)
+        stacked = np.stack(list(seps.values()))
+        hits = np.flatnonzero((stacked[:, 1:] <= 0.0).any(axis=0))
+        if hits.size:
+            k = int(hits[0]) + 1
+            pair = next(p for p, sep in seps.items() if sep[k] <= 0.0)
+            return _averaged(scene, lab, seps, pair, ts, k, interpolate)
+        k0 += _CHUNK
+    return None
+
+
+def _separations(
+    scene: Scene, lab: list[tuple[FloatArray, ...]], flights: list[FlightState | None], ts: FloatArray, q: int | None
+) -> dict[tuple[int, int], FloatArray]:
+    """Separation (> 0 apart) of every pair with a flying rod, per time; (i, −1) is the wall."""
+    m = scene.model
+    out: dict[tuple[int, int], FloatArray] = {}
+    for i, f in enumerate(flights):
+        if f is None:
+            continue
+        flying = ts > f.t0_s
+        x, y, _, _, yc, _ = lab[i]
+        if q is None:
+            sep = m.r0_m**2 - (x * x + (y - yc) ** 2)
+        else:
+            tau = ts - f.t0_s
+            base = math.atan2(f.y0_m, f.x0_m) + scene.omega_r_rad_s * tau
+            angles = base[:, None] + 2.0 * math.pi * np.arange(q)[None, :] / q
+            ax, ay = m.vial_radius_m * np.cos(angles), yc[:, None] + m.vial_radius_m * np.sin(angles)
+            d2 = np.min((x[:, None] - ax) ** 2 + (y[:, None] - ay) ** 2, axis=1)
+            sep = d2 - m.rod_radius_m**2
+        out[(i, -1)] = np.where(flying, sep, np.inf)
+        for j in range(len(flights)):
+            if j == i or (j < i and flights[j] is not None):
+                continue
+            xj, yj = lab[j][0], lab[j][1]
+            both = flying | (ts > (flights[j].t0_s if flights[j] is not None else math.inf))  # type: ignore[union-attr]
+            sep_r = (x - xj) ** 2 + (y - yj) ** 2 - (2.0 * m.rod_radius_m) ** 2
+            out[(i, j)] = np.where(both, sep_r, np.inf)
+    return out
+
+
+def _averaged(
+    scene: Scene,
+    lab: list[tuple[FloatArray, ...]],
+    seps: dict[tuple[int, int], FloatArray],
+    pair: tuple[int, int],
+    ts: FloatArray,
+    k: int,
+    interpolate: bool,
+) -> tuple[float, int, int, float, float, float, float]:
+    """The paper's answer: the average of the step's end points (or the interpolated time)."""
+    i, j = pair
+
+    def at(rod: int, idx: int) -> tuple[float, ...]:
+        return tuple(float(a[idx]) for a in lab[rod])
+
+    a0, a1 = at(i, k - 1), at(i, k)
+    t_prev = float(ts[k - 1])
+    w = 0.5
+    if interpolate:
+        s0, s1 = float(seps[pair][k - 1]), float(seps[pair][k])
+        w = s0 / (s0 - s1) if math.isfinite(s0) and s0 > s1 else 1.0
+    t = t_prev + w * (float(ts[k]) - t_prev)
+    rod = [(1 - w) * u + w * v for u, v in zip(a0, a1, strict=True)]
+    x, y, vx, vy, yc, vyc = rod
+    r = scene.model.rod_radius_m
+    if j == -1:
+        dx, dy = x, y - yc
+        wall_vx, wall_vy = -scene.omega_r_rad_s * dy, vyc + scene.omega_r_rad_s * dx
+        rvx, rvy = vx - wall_vx, vy - wall_vy
+    else:
+        b0, b1 = at(j, k - 1), at(j, k)
+        xb, yb, vxb, vyb, _, _ = ((1 - w) * u + w * v for u, v in zip(b0, b1, strict=True))
+        dx, dy, rvx, rvy = xb - x, yb - y, vx - vxb, vy - vyb
+    norm = math.hypot(dx, dy)
+    nx, ny = dx / norm, dy / norm
+    return t, i, j, x + r * nx, y + r * ny, rvx * nx + rvy * ny, math.hypot(vx, vy)
+
+
+__all__ = ["legacy_first_contact"]

@@ -1,0 +1,114 @@
+"""One entry point per first-impact method, for the benchmark (issue 11) and the CLI.
+
+``first_impact(scene, method, ...)`` answers the same question with each scheme:
+from t = 0, every rod pinned at eq. 11's angles, each rod detaching at its own
+exact detachment time, which is the first contact (rod–wall or rod–rod)?
+
+=============== ==================================================== ============
+method          scheme                                                knob
+=============== ==================================================== ============
+``exact``       bracket + brentq in vial-centred coordinates          ``tol`` (s)
+``legacy``      paper: fixed dt, end-point check, averaging; circle   ``dt`` (s)
+``legacy-interp`` as ``legacy``, time by linear interpolation          ``dt`` (s)
+``legacy-arcs`` paper: fixed dt, wall as q arcs (eqs 15–17)           ``dt``, ``q``
+``ivp``         scipy solve_ivp (DOP853) with terminal events          ``tol`` (rtol)
+=============== ==================================================== ============
+
+The reference is :func:`millctl.physics.reference.reference_first_impact`
+(closed form for r_d = 0 and one rod, mpmath otherwise).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from millctl.errors import PhysicsInputError
+from millctl.physics.impact import impact_energy_j
+from millctl.physics.ivp import ivp_first_contact
+from millctl.physics.legacy import legacy_first_contact
+from millctl.physics.model import Scene
+from millctl.physics.simulate import simulate
+
+Method = Literal["exact", "legacy", "legacy-interp", "legacy-arcs", "ivp"]
+METHODS: tuple[Method, ...] = ("exact", "legacy", "legacy-interp", "legacy-arcs", "ivp")
+
+
+@dataclass(frozen=True)
+class ImpactEvent:
+    """The first impact of a scene (SI units, lab frame)."""
+
+    time_s: float
+    rod: int
+    partner: int
+    """Other rod's index, or −1 for the wall."""
+    x_m: float
+    y_m: float
+    """Contact point (lab frame: origin at the cam rotor)."""
+    normal_velocity_m_s: float
+    """Relative normal approach speed."""
+    speed_abs_m_s: float
+    """The rod's absolute speed (eq. 19's |v|)."""
+    energy_j: float
+    """Impact energy in the scene's variant (eq. 19 or ½ m_eff (1 − e²) v_n²)."""
+    method: str
+
+
+def _event(scene: Scene, method: str, row: tuple[float, int, int, float, float, float, float]) -> ImpactEvent:
+    t, rod, partner, x, y, v_n, speed = row
+    energy = impact_energy_j(scene.model, v_n, speed, partner < 0)
+    return ImpactEvent(t, rod, partner, x, y, v_n, speed, energy, method)
+
+
+def first_impact(
+    scene: Scene,
+    method: Method = "exact",
+    *,
+    tol: float | None = None,
+    dt: float | None = None,
+    q: int | None = None,
+    t_end_s: float = 5.0,
+) -> ImpactEvent | None:
+    """The first impact of ``scene`` by the named method; None if nothing touches before t_end (s).
+
+    ``tol``: exact — brentq time tolerance in s (default ≈ 4 ulp); ivp — rtol (default 1e-10).
+    ``dt``: legacy step (s), required for the legacy methods. ``q``: arcs of ``legacy-arcs`` (default 360).
+    """
+    if method == "exact":
+        result = simulate(scene, t_end_s, stop_after_first=True, tol_s=tol or 0.0)
+        if len(result.impacts) == 0:
+            return None
+        r = result.impacts[0]
+        return ImpactEvent(
+            float(r["time_s"]),
+            int(r["rod"]),
+            int(r["partner"]),
+            float(r["x_m"]),
+            float(r["y_m"]),
+            float(r["normal_velocity_m_s"]),
+            float(r["speed_abs_m_s"]),
+            float(r["energy_j"]),
+            method,
+        )
+    if method == "ivp":
+        row = ivp_first_contact(scene, 1e-10 if tol is None else tol, t_end_s)
+        return None if row is None else _event(scene, method, row)
+    if method in ("legacy", "legacy-interp", "legacy-arcs"):
+        if dt is None:
+            raise PhysicsInputError(f"method {method!r} needs a time step dt (s)")
+        arcs = (360 if q is None else q) if method == "legacy-arcs" else None
+        row = legacy_first_contact(scene, dt, arcs, t_end_s, interpolate=method == "legacy-interp")
+        return None if row is None else _event(scene, method, row)
+    raise PhysicsInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+
+
+def wall_angle_rad(scene: Scene, event: ImpactEvent) -> float:
+    """Angle of the contact point about the vial centre at the event (rad)."""
+    m = scene.model
+    alpha = scene.alpha0_rad + scene.omega_v_rad_s * event.time_s
+    yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * math.sin(alpha)
+    return math.atan2(event.y_m - yc, event.x_m)
+
+
+__all__ = ["METHODS", "ImpactEvent", "Method", "first_impact", "wall_angle_rad"]
