@@ -19,6 +19,7 @@ from millctl.errors import ExitCode, MillctlError
 COMMAND_MODULES = (
     "millctl.cli.config_cmd",
     "millctl.cli.limits_cmd",
+    "millctl.cli.physics_cmd",
     "millctl.cli.recipe_cmd",
     "millctl.cli.bus_cmd",
     "millctl.cli.service_cmd",
