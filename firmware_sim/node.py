@@ -346,6 +346,20 @@ class Node:
         if self._state in (NodeState.ARMED, NodeState.RUNNING):
             self._set_state(NodeState.STOPPING, reason)
 
+    def shutdown_stop(self) -> None:
+        """The process is ending: begin a controlled stop from any state, heater off."""
+        now = self.clock.now()
+        if self._state in (NodeState.ARMED, NodeState.RUNNING):
+            self.begin_stop(now, "shutdown")
+        elif not self.motion.zero:
+            self.motion.begin_stop(now)
+        self.furnace.heater_off()
+
+    @property
+    def at_standstill(self) -> bool:
+        """Both drives at rest and no stop under way."""
+        return self._standstill()
+
     def _latch(self, flag: FaultFlag, reason: str, now: float) -> None:
         new = flag & ~self._fault_bits
         if not new:

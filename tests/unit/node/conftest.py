@@ -49,7 +49,8 @@ class Bench:
             Setpoints: AliveCounter(),
         }
         self.heartbeat_period_s = config.timing.heartbeat_period_s
-        self.tick_s = config.timing.node_tick_s
+        self.tick_s = 2.0 * config.timing.node_tick_s
+        """How far one bench step moves the clock (s); the node sub-steps its physics at its configured tick."""
         self._next_heartbeat_s = self.clock.now()
         self._next_setpoint_s = self.clock.now()
         self.point = SpeedPoint(0.0, 0.0)

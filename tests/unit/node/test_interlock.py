@@ -1,0 +1,117 @@
+"""Setpoint interlock on the node (SAFETY.md items 4 and 12, node side): refused, never clamped."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
+
+from millctl.config import MillConfig
+from millctl.protocol import NodeState, NodeStatus, RefusalCode, Setpoints
+
+from .conftest import Bench
+
+
+def _refused(bench: Bench, setpoint: Setpoints) -> RefusalCode:
+    before = bench.node.refused_setpoints
+    bench.send(setpoint)
+    bench.step(bench.tick_s)
+    assert bench.node.refused_setpoints == before + 1
+    return bench.node.last_refusal
+
+
+def test_safety_4_setpoint_outside_the_envelope_is_refused_not_clamped(bench: Bench) -> None:
+    bench.run_at(100.0, 300.0)
+    limit_rpm = float(bench.envelope.omega_r_limit_rpm(300.0))
+    accepted = bench.node.last_setpoint
+    assert _refused(bench, Setpoints(round(limit_rpm + 2.0, 1), 300.0, 25.0, False)) is RefusalCode.ENVELOPE
+    assert bench.node.last_setpoint == accepted
+    bench.step(1.0)
+    assert bench.node.true_speeds_rpm[0] < 100.0 + 2.0
+    bench.step(0.06)
+    assert bench.latest(NodeStatus).last_refusal is RefusalCode.ENVELOPE
+
+
+def test_safety_4_absolute_speed_and_temperature_limits(bench: Bench) -> None:
+    bench.arm()
+    too_fast = bench.config.drives.vibration.max_speed_rpm + 10.0
+    assert _refused(bench, Setpoints(0.0, too_fast, 25.0, False)) is RefusalCode.SPEED_LIMIT
+    too_hot = bench.config.furnace.max_setpoint_c + 10.0
+    assert _refused(bench, Setpoints(0.0, 0.0, too_hot, True)) is RefusalCode.TEMP_LIMIT
+    assert not bench.node.heater_on
+    assert bench.node.state is NodeState.ARMED
+
+
+def test_safety_12_a_raw_jump_is_refused_accel_limit(bench: Bench) -> None:
+    bench.arm()
+    target = Setpoints(180.0, 800.0, 25.0, False)
+    assert bench.envelope.check(180.0, 800.0).ok
+    assert _refused(bench, target) is RefusalCode.ACCEL_LIMIT
+    bench.step(2.0)
+    assert _refused(bench, target) is RefusalCode.ACCEL_LIMIT  # waiting does not bank a large step
+    assert bench.node.true_speeds_rpm == (0.0, 0.0)
+    assert bench.node.state is NodeState.ARMED
+
+
+def test_safety_12_the_controllers_sampled_ramp_passes(bench: Bench) -> None:
+    bench.run_at(180.0, 800.0)
+    assert bench.node.refused_setpoints == 0
+    m_r, m_v = bench.node.measured_speeds_rpm
+    assert abs(m_r - 180.0) < 3.0 and abs(m_v - 800.0) < 5.0
+
+
+def test_refused_setpoints_in_stopping_and_fault(bench: Bench) -> None:
+    from millctl.protocol import CommandCode
+
+    bench.run_at(50.0, 200.0)
+    bench.command(CommandCode.STOP)
+    bench.step(0.02)
+    assert _refused(bench, Setpoints(50.0, 200.0, 25.0, False)) is RefusalCode.WRONG_STATE
+    bench.step(0.4, heartbeat=False)
+    assert bench.node.state is NodeState.FAULT
+    assert _refused(bench, Setpoints(0.0, 0.0, 25.0, False)) is RefusalCode.FAULT_LATCHED
+
+
+_moves = st.lists(
+    st.one_of(
+        st.tuples(st.just("rel"), st.floats(-25.0, 25.0), st.floats(-80.0, 80.0), st.integers(1, 10)),
+        st.tuples(st.just("edge"), st.floats(0.8, 1.1), st.floats(0.0, 1300.0), st.integers(1, 60)),
+    ),
+    min_size=3,
+    max_size=10,
+)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(moves=_moves, seed=st.integers(0, 2**16))
+@example(moves=[("edge", 0.95, 800.0, 100), ("rel", 0.0, 0.0, 1)], seed=0)
+def test_safety_12_raw_sender_cannot_drive_the_node_outside_the_envelope(
+    config: MillConfig, moves: list[tuple[str, float, float, int]], seed: int
+) -> None:
+    bench = Bench(config, seed=seed)
+    tolerance = bench.envelope.measurement_tolerance_rpm
+    worst: list[float] = []
+
+    def watch(b: Bench) -> None:
+        m_r, m_v = b.node.measured_speeds_rpm
+        if not b.envelope.contains(m_r, m_v, tolerance):
+            worst.append(m_r - float(b.envelope.omega_r_limit_rpm(m_v)))
+
+    try:
+        bench.arm()
+        bench.on_tick.append(watch)
+        r, v = 0.0, 0.0
+        for mode, a, b, wait in moves:
+            # "rel": a step from the last accepted setpoint; "edge": a fraction a of the limit at ω_v = b.
+            r, v = (r + a, v + b) if mode == "rel" else (a * float(bench.envelope.omega_r_limit_rpm(b)), b)
+            r, v = float(np.clip(r, 0.0, 2000.0)), float(np.clip(v, 0.0, 2000.0))
+            bench.setpoints(r, v)
+            bench.step(wait * 0.04, dt_s=0.04)
+            accepted = bench.node.last_setpoint
+            if accepted is not None:
+                r, v = accepted.rotary_rpm, accepted.vibration_rpm
+        bench.step(4.0, dt_s=0.04)
+        assert worst == []
+        assert bench.node.state in (NodeState.ARMED, NodeState.RUNNING)
+    finally:
+        bench.close()
