@@ -34,13 +34,17 @@ from millctl.safety import Envelope, RampPlanner, SpeedPoint, Trajectory
 class Bench:
     """The node under test and a controller stand-in that sends heartbeats, commands and setpoints."""
 
-    def __init__(self, config: MillConfig, *, fault_injection: bool = False, seed: int = 0) -> None:
+    def __init__(
+        self, config: MillConfig, *, fault_injection: bool = False, seed: int = 0, physics_thread: bool = True
+    ) -> None:
         self.config = config
         self.channel = f"node-test-{uuid.uuid4().hex}"
         self.node_bus = can.Bus(interface="virtual", channel=self.channel, receive_own_messages=False)
         self.ctl_bus = can.Bus(interface="virtual", channel=self.channel, receive_own_messages=False)
         self.clock = ManualClock(100.0)
-        self.node = Node(config, self.node_bus, self.clock, fault_injection=fault_injection, seed=seed)
+        self.node = Node(
+            config, self.node_bus, self.clock, fault_injection=fault_injection, seed=seed, physics_thread=physics_thread
+        )
         self.codec = default_codec()
         self.envelope = Envelope.from_config(config)
         self.counters: dict[type[MillMessage], AliveCounter] = {
@@ -58,6 +62,8 @@ class Bench:
         """Setpoints re-sent every setpoint period (the controller's refresh), if any."""
         self.move: tuple[Trajectory, float, float, bool] | None = None
         self.received: list[Decoded] = []
+        self.frame_ids: list[int] = []
+        """Identifiers of every frame the node sent, decodable or not."""
         self.on_tick: list[Callable[[Bench], None]] = []
 
     # -- sending ---------------------------------------------------------------------------
@@ -112,6 +118,7 @@ class Bench:
 
     def collect(self) -> None:
         while (frame := self.ctl_bus.recv(timeout=0)) is not None:
+            self.frame_ids.append(frame.arbitration_id)
             with contextlib.suppress(ProtocolError):
                 self.received.append(self.codec.decode(frame))
 
