@@ -8,6 +8,10 @@ import sys
 import uuid
 from pathlib import Path
 
+import pytest
+
+from firmware_sim.__main__ import main
+
 REPO = Path(__file__).resolve().parents[3]
 CONFIG = REPO / "config" / "mill.toml"
 
@@ -39,14 +43,18 @@ def test_sigterm_stops_the_node_and_exits_0() -> None:
     assert "heater off" in err
 
 
-def test_bad_config_exits_1(tmp_path: Path) -> None:
+def test_bad_config_exits_1(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     bad = tmp_path / "mill.toml"
     bad.write_text(CONFIG.read_text().replace("max_speed_rpm = 400.0", "max_speed_rpm = -4.0"))
-    result = subprocess.run(_command("--config", str(bad)), cwd=REPO, capture_output=True, text=True, timeout=60)
-    assert result.returncode == 1
-    assert "max_speed_rpm" in result.stderr
+    assert main(["--config", str(bad)]) == 1
+    assert "max_speed_rpm" in caplog.text
 
 
 def test_bad_arguments_exit_1() -> None:
-    result = subprocess.run(_command("--seed", "x"), cwd=REPO, capture_output=True, text=True, timeout=60)
-    assert result.returncode == 1
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--config", str(CONFIG), "--seed", "x"])
+    assert exit_info.value.code == 1
+
+
+def test_bad_interface_override_exits_1() -> None:
+    assert main(["--config", str(CONFIG), "--interface", "carrier-pigeon"]) == 1
