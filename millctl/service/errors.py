@@ -37,7 +37,7 @@ def _num(value: float) -> float | None:
 def error_response(status: int, code: str, message: str, **extra: Any) -> JSONResponse:
     """A JSON error response in the one shape every error has."""
     body = ErrorBody(code=code, message=message, **extra)
-    return JSONResponse(status_code=status, content=body.model_dump(exclude_none=True))
+    return JSONResponse(status_code=status, content=body.model_dump(exclude_defaults=True))
 
 
 def refusal_list(refused: InterlockRefused) -> list[dict[str, Any]]:
@@ -92,6 +92,8 @@ async def _unreachable(request: Request, exc: Exception) -> JSONResponse:
 
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, HTTPException)
+    if exc.status_code == 400:  # a body that is not JSON at all: a validation error like any other
+        return error_response(422, "invalid_request", f"body: {exc.detail}", field="body")
     return error_response(exc.status_code, f"http_{exc.status_code}", str(exc.detail))
 
 

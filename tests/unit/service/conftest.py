@@ -1,0 +1,138 @@
+"""Fixtures: a real ``millctl serve`` subprocess (embedded simulated node) on a temporary socket and records dir.
+
+Every service started here is stopped at teardown (SIGTERM, then SIGKILL
+after a bound), and its socket and records live in temporary directories.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from millctl.client import Client
+from millctl.config.loader import packaged_file
+
+REPO = Path(__file__).resolve().parents[3]
+START_TIMEOUT_S = 30.0
+STOP_TIMEOUT_S = 30.0
+
+
+def write_config(directory: Path, **service: object) -> Path:
+    """A copy of the packaged config with its own virtual channel and ``[service]`` pointing into ``directory``."""
+    text = packaged_file("mill.toml").read_text(encoding="utf-8")
+    text = re.sub(r'(?m)^channel = ".*"$', f'channel = "svc-{uuid.uuid4().hex[:8]}"', text)
+    head, _, _ = text.partition("[service]")
+    values = {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records"), **service}
+    lines = []
+    for key, value in values.items():
+        lines.append(f'{key} = "{value}"' if isinstance(value, str) else f"{key} = {value}")
+    path = directory / "mill.toml"
+    path.write_text(head + "[service]\n" + "\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+@dataclass
+class Service:
+    """A running ``millctl serve`` process and where it lives."""
+
+    proc: subprocess.Popen[bytes]
+    config: Path
+    socket: Path
+    records: Path
+    log: Path
+
+    def client(self, name: str = "test", **kwargs: object) -> Client:
+        """A client of this service."""
+        return Client(self.socket, name=name, **kwargs)  # type: ignore[arg-type]
+
+    def output(self) -> str:
+        """What the service wrote to stdout and stderr."""
+        return self.log.read_text(errors="replace")
+
+    def stop(self, sig: int = signal.SIGTERM) -> int:
+        """Signal the service and wait for it (SIGKILL after the bound); return its exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        try:
+            return self.proc.wait(STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            pytest.fail(f"the service did not stop within {STOP_TIMEOUT_S} s:\n{self.output()[-2000:]}")
+
+
+def run_millctl(config: Path, *args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+    """Run ``millctl --config CONFIG ARGS…`` and capture its output."""
+    return subprocess.run(
+        [sys.executable, "-m", "millctl", "--config", str(config), *args],
+        cwd=REPO, capture_output=True, text=True, timeout=timeout_s, check=False,
+    )
+
+
+def start_service(directory: Path, *, wait_for_node: bool = True) -> Service:
+    """Start ``millctl serve`` with the config in ``directory``; return once the API answers (and the node is seen)."""
+    config = directory / "mill.toml"
+    log = directory / "serve.log"
+    with log.open("wb") as out:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "millctl", "--config", str(config), "serve"],
+            cwd=REPO, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+        )
+    service = Service(proc, config, directory / "mill.sock", directory / "records", log)
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"millctl serve exited with {proc.returncode}:\n{service.output()}")
+        if service.socket.exists():
+            with contextlib.suppress(Exception), service.client() as client:
+                if not wait_for_node or client.status()["state"] == "DISABLED":
+                    return service
+        time.sleep(0.1)
+    service.stop(signal.SIGKILL)
+    pytest.fail(f"millctl serve did not come up within {START_TIMEOUT_S} s:\n{service.output()}")
+
+
+@contextlib.contextmanager
+def private_dir() -> Iterator[Path]:
+    """A short temporary directory (Unix socket paths are limited to 107 bytes), removed afterwards."""
+    path = Path(tempfile.mkdtemp(prefix="millctl-svc-"))
+    try:
+        yield path
+    finally:
+        shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture(scope="module")
+def service() -> Iterator[Service]:
+    """One service for a test module; stopped (and checked to be gone) at teardown."""
+    with private_dir() as directory:
+        os.chmod(directory, 0o755)  # traversable by anyone: the socket's own mode must keep others out
+        write_config(directory)
+        running = start_service(directory)
+        try:
+            yield running
+        finally:
+            running.stop()
+
+
+def wait_for(condition: object, timeout_s: float = 10.0, what: str = "condition") -> None:
+    """Poll ``condition()`` until true; fail after ``timeout_s`` (a safety net, not a timing assertion)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if condition():  # type: ignore[operator]
+            return
+        time.sleep(0.05)
+    pytest.fail(f"timed out waiting for {what}")

@@ -1,0 +1,186 @@
+"""The service's API over a real Unix socket, with the embedded simulated node, through millctl.Client."""
+
+from __future__ import annotations
+
+import signal
+import stat
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from millctl.cli import main
+from millctl.client import ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
+from millctl.errors import ExitCode, InterlockError
+from millctl.records import read_records
+from tests.unit.service.conftest import Service, wait_for
+
+
+def test_status_and_service_show_the_config_law_and_margin(service: Service) -> None:
+    with service.client() as client:
+        status = client.status()
+        info = client.service()
+        envelope = client.envelope(points=5)
+    assert status["state"] == "DISABLED"
+    assert status["node_state"] == "DISABLED"
+    assert info["config_path"] == str(service.config)
+    assert info["embedded_node"] is True
+    assert (info["law"], info["margin"]) == (status["law"], status["margin"])
+    assert len(envelope["points"]) == 5
+    assert envelope["points"][0]["omega_v_rpm"] == 0.0
+
+
+def test_arm_set_refuse_stop_and_the_records_explain_it(service: Service) -> None:
+    with service.client("operator") as client, client.control():
+        client.arm()
+        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+        accepted = client.set_speeds(180.0, 800.0)
+        assert accepted["duration_s"] > 0.0
+        with pytest.raises(InterlockRefusal) as refused:
+            client.set_speeds(250.0, 800.0)
+        assert refused.value.exit_code is ExitCode.INTERLOCK
+        assert refused.value.code == "interlock_refused"
+        assert "exceeds the limit" in refused.value.reason
+        (omega_r,) = [r for r in refused.value.refusals if r["quantity"] == "omega_r"]
+        assert omega_r["value"] == 250.0
+        assert omega_r["limit"] < 250.0
+        client.stop()
+        wait_for(lambda: client.status()["state"] == "ARMED", 30.0, "the controlled stop to end")
+        client.disarm()
+        wait_for(lambda: client.status()["state"] == "DISABLED", what="DISABLED")
+    records = list(read_records(service.records / "events.jsonl"))
+    refusals = [r for r in records if r["kind"] == "refusal"]
+    assert refusals, "the refusal is recorded"
+    assert refusals[-1]["source"].startswith("api:operator@")
+    assert "250.0" in refusals[-1]["message"]
+    kinds = {r["kind"] for r in records}
+    assert {"service", "config", "state", "command", "control"} <= kinds
+    (config,) = [r for r in records if r["kind"] == "config"]
+    assert config["data"]["law"] and config["data"]["sha256"]
+
+
+def test_one_client_holds_control_and_others_are_told_who(service: Service) -> None:
+    with service.client("alice") as alice, service.client("bob") as bob:
+        alice.take_control()
+        try:
+            with pytest.raises(ControlHeld) as held:
+                bob.take_control()
+            assert held.value.holder is not None and held.value.holder.startswith("api:alice@")
+            assert isinstance(held.value, InterlockError)
+            with pytest.raises(ControlHeld):
+                bob.take_control(force=True)  # a live lease is never taken away
+            with pytest.raises(ControlHeld):
+                bob.arm()  # no lease
+            assert bob.control_state()["holder"].startswith("api:alice@")
+        finally:
+            alice.release_control()
+        with bob.control():
+            assert bob.control_state()["holder"].startswith("api:bob@")
+        assert bob.control_state()["held"] is False
+
+
+def test_estop_needs_no_lease_and_reset_clears_it(service: Service) -> None:
+    with service.client("holder") as holder, service.client("bystander") as bystander, holder.control():
+        result = bystander.estop()
+        assert result["state"] == "TRIPPED"
+        assert "E-stop" in bystander.status()["trip_cause"]
+        with pytest.raises(ServiceRefused) as refused:
+            holder.arm()  # tripped: wrong state, with the cause
+        assert refused.value.code == "wrong_state"
+        wait_for(lambda: holder.status()["node_state"] == "FAULT", what="the node to report its E-stop fault")
+        wait_for(lambda: _reset_ok(holder), 10.0, "reset to be accepted")
+        wait_for(lambda: holder.status()["state"] == "DISABLED", what="DISABLED after reset")
+
+
+def _reset_ok(client: object) -> bool:
+    try:
+        client.reset()  # type: ignore[attr-defined]
+    except ServiceRefused:
+        return False
+    return True
+
+
+def test_invalid_requests_name_the_field(service: Service) -> None:
+    with service.client("typo") as client, client.control():
+        with pytest.raises(RequestInvalid) as invalid:
+            client.set_speeds(-5.0, 800.0)
+        assert invalid.value.field == "body.rotary_rpm"
+        assert invalid.value.exit_code is ExitCode.INVALID_INPUT
+        response = client._http.post("/v1/setpoints", json={"rotary_rpm": 1, "vibration_rpm": 1, "bypass": True},
+                                     headers=client._headers())
+        assert response.status_code == 422
+        assert response.json()["code"] == "invalid_request"
+        assert response.json()["field"] == "body.bypass"
+
+
+def test_stream_sends_status_and_events(service: Service) -> None:
+    with service.client("watcher") as watcher, service.client("actor") as actor:
+        items = watcher.stream(count=50)
+        first = next(items)
+        assert first["event"] == "status" and first["data"]["state"] == "DISABLED"
+        actor.take_control()
+        actor.release_control()
+        kinds = []
+        for item in items:
+            kinds.append(item["event"])
+            if item["event"] == "event" and item["data"]["kind"] == "control":
+                break
+        assert "event" in kinds
+        items.close()
+        after = watcher.events(after=0)
+        assert after["last_seq"] >= len(after["events"]) > 0
+
+
+def test_socket_is_0600_and_another_user_is_refused(service: Service) -> None:
+    assert stat.S_IMODE(service.socket.stat().st_mode) == 0o600
+    assert stat.S_IMODE(service.socket.parent.stat().st_mode) & 0o005 == 0o005  # only the socket keeps others out
+    probe = (
+        "import socket,sys\n"
+        "s=socket.socket(socket.AF_UNIX)\n"
+        "try:\n s.connect(sys.argv[1]); s.sendall(b'GET /v1/status HTTP/1.0\\r\\n\\r\\n')\n"
+        " print('answered', s.recv(64))\n"
+        "except PermissionError as e: print('refused', e)\n"
+    )
+    command = ["/usr/bin/python3", "-c", probe, str(service.socket)]
+    import os
+
+    if os.geteuid() == 0:
+        command = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *command]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=30, check=False)
+    assert done.stdout.startswith("refused"), done.stdout + done.stderr
+
+
+def test_a_second_serve_on_the_same_socket_refuses_to_start(
+    service: Service, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--config", str(service.config), "serve"]) == ExitCode.BUS
+    stderr = capsys.readouterr().err
+    assert str(service.socket) in stderr
+    assert f"pid {service.proc.pid}" in stderr
+    with service.client() as client:
+        assert client.status()["state"] == "DISABLED"  # the first one is untouched
+
+
+def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
+    service: Service, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--config", str(service.config), "arm"]) == ExitCode.OK
+    with service.client() as client:
+        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+    capsys.readouterr()
+    refused = main(["--config", str(service.config), "set", "--rot-rpm", "250", "--vib-rpm", "800"])
+    assert refused == ExitCode.INTERLOCK
+    assert "exceeds the limit" in capsys.readouterr().err
+    assert main(["--config", str(service.config), "status", "--json"]) == ExitCode.OK
+    assert '"state": "ARMED"' in capsys.readouterr().out
+    with service.client() as client, client.control():
+        assert client.status()["state"] == "ARMED"
+        client.disarm()
+
+
+def test_sigterm_stops_cleanly_removes_the_socket_and_records_it(service: Service) -> None:
+    assert service.stop(signal.SIGTERM) == 0, service.output()
+    assert not service.socket.exists()
+    records = list(read_records(service.records / "events.jsonl"))
+    assert records[-1]["kind"] == "service" and "SIGTERM" in records[-1]["message"]
+    assert Path(service.records / "bus" / "bus.log").stat().st_size > 0

@@ -1,0 +1,65 @@
+"""Fuzz the API against its own OpenAPI schema: every response is a documented one, and none is a 5xx.
+
+The app runs in-process (ASGI) on a real runtime with the embedded simulated
+node; only the endless event stream is left out (it is tested over the socket).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import schemathesis
+from hypothesis import HealthCheck, settings
+from schemathesis.checks import not_a_server_error
+from schemathesis.specs.openapi.checks import (
+    content_type_conformance,
+    response_schema_conformance,
+    status_code_conformance,
+)
+
+from millctl.config import load_config
+from millctl.service import ServiceRuntime, create_app
+from tests.unit.service.conftest import write_config
+
+CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
+
+
+@pytest.fixture(scope="module")
+def api_schema(tmp_path_factory: pytest.TempPathFactory) -> Iterator[object]:
+    directory: Path = tmp_path_factory.mktemp("schema")
+    runtime = ServiceRuntime(load_config(write_config(directory)))
+    runtime.start()
+    try:
+        deadline = time.monotonic() + 10.0
+        while runtime.status()["state"] != "DISABLED" and time.monotonic() < deadline:
+            time.sleep(0.05)
+        yield schemathesis.openapi.from_asgi("/openapi.json", create_app(runtime))
+    finally:
+        runtime.shutdown("test over", bound_s=2.0)
+
+
+schema = schemathesis.pytest.from_fixture("api_schema").exclude(path="/v1/stream")
+
+
+@schema.parametrize()
+@settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
+def test_every_response_is_documented_and_none_is_a_server_error(case: schemathesis.Case) -> None:
+    case.call_and_validate(checks=CHECKS)
+
+
+def test_every_route_is_versioned_and_documents_its_errors(tmp_path: Path) -> None:
+    runtime = ServiceRuntime(load_config(write_config(tmp_path)), embed_node=False)
+    try:
+        spec = create_app(runtime).openapi()
+    finally:
+        runtime.close()
+    assert spec["paths"]
+    for path, operations in spec["paths"].items():
+        assert path.startswith("/v1/"), path
+        for method, operation in operations.items():
+            assert "422" in operation["responses"], (method, path)
+            if method == "post" and path not in ("/v1/envelope/check",):
+                assert {"409", "423", "503"} <= set(operation["responses"]), (method, path)
