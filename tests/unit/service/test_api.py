@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import signal
 import stat
 import subprocess
@@ -10,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from millctl.cli import main
-from millctl.client import ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
+from millctl.client import AsyncClient, ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
 from millctl.errors import ExitCode, InterlockError
 from millctl.records import read_records
 from tests.unit.service.conftest import Service, wait_for
@@ -176,6 +177,64 @@ def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
     with service.client() as client, client.control():
         assert client.status()["state"] == "ARMED"
         client.disarm()
+
+
+DEMO = Path(__file__).resolve().parents[3] / "config" / "recipes" / "demo.toml"
+
+
+def test_a_recipe_runs_pauses_and_aborts_and_a_bad_one_is_refused(service: Service, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(DEMO.read_text().replace("rotary_rpm = 180.0", "rotary_rpm = 250.0"))
+    with service.client("recipes") as client, client.control():
+        with pytest.raises(InterlockRefusal) as refused:
+            client.recipe_run(bad)
+        assert refused.value.code == "recipe_refused"
+        assert any(r["quantity"] == "omega_r" and r["value"] == 250.0 for r in refused.value.refusals)
+        with pytest.raises(RequestInvalid):
+            client.recipe_run(tmp_path / "missing.toml")
+        started = client.recipe_run(DEMO)
+        assert started["active"] is True and started["progress"]["steps"] == 4
+        with pytest.raises(ServiceRefused):
+            client.recipe_run(DEMO)  # one run at a time
+        with pytest.raises(ServiceRefused):
+            client.set_speeds(10.0, 10.0)  # the recipe drives the mill
+        wait_for(lambda: client.recipe()["progress"]["state"] == "RUNNING", what="the run to start")
+        assert client.recipe_pause(now=True)["progress"]["state"] == "PAUSED"
+        assert client.recipe_resume()["progress"]["state"] == "RUNNING"
+        client.recipe_abort()
+        wait_for(lambda: not client.recipe()["active"], 30.0, "the aborted run to stop")
+        progress = client.recipe()["progress"]
+        assert progress["state"] == "ABORTED"
+        assert Path(progress["record"]).exists()
+        client.disarm()
+        wait_for(lambda: client.status()["state"] == "DISABLED", what="DISABLED")
+
+
+async def test_the_async_client_reads_and_commands(service: Service) -> None:
+    async with AsyncClient(service.socket, name="async") as client:
+        assert (await client.status())["state"] == "DISABLED"
+        async with client.control():
+            assert (await client.control_state())["holder"].startswith("api:async@")
+            with pytest.raises(InterlockRefusal):
+                await _arm_and_refuse(client)
+        stream = client.stream(count=2)
+        first = await anext(stream)
+        assert first["event"] == "status"
+        await stream.aclose()
+
+
+async def _arm_and_refuse(client: AsyncClient) -> None:
+    verdict = await client.check(250.0, 800.0)
+    assert verdict["ok"] is False and verdict["refusals"][0]["quantity"] == "omega_r"
+    await client.arm()
+    for _ in range(200):
+        if (await client.status())["state"] == "ARMED":
+            break
+        await asyncio.sleep(0.05)
+    try:
+        await client.set_speeds(250.0, 800.0)
+    finally:
+        await client.disarm()
 
 
 def test_sigterm_stops_cleanly_removes_the_socket_and_records_it(service: Service) -> None:
