@@ -1,0 +1,47 @@
+"""``millctl physics``: what an operator or a script reads."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from millctl.cli import main
+from tests.conftest import CONFIG_FILE
+
+
+def _run(capsys, *args):
+    code = main(["--config", str(CONFIG_FILE), "physics", *args])
+    return code, capsys.readouterr()
+
+
+def test_json_report_corrected(capsys):
+    code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
+    assert code == 0
+    report = json.loads(out.out)
+    assert report["variant"] == "corrected" and not report["pinned"]
+    assert report["first_detachment"]["time_s"] >= 0.0
+    imp = report["first_impact"]
+    assert imp["flight_time_s"] > 0.0 and imp["energy_j"] > 0.0
+    assert report["summary"]["detached"] is True and report["summary"]["impact_rate_hz"] > 0.0
+
+
+def test_text_report_paper_pinned(capsys):
+    code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "paper")
+    assert code == 0
+    assert "stay pinned" in out.out and "per revolution: pinned" in out.out
+
+
+def test_legacy_method_and_phases(capsys):
+    args = ("--rot-rpm", "100", "--vib-rpm", "800", "--method", "legacy", "--dt", "1e-4")
+    code, out = _run(capsys, *args, "--theta0-deg", "-120", "--alpha0-deg", "45", "--json")
+    assert code == 0
+    report = json.loads(out.out)
+    assert report["method"] == "legacy" and report["first_impact"] is not None
+
+
+def test_negative_speed_is_invalid_input(capsys):
+    with pytest.raises(SystemExit) as exc:
+        _run(capsys, "--rot-rpm=-5", "--vib-rpm", "800")
+    assert exc.value.code == 1
+    assert "≥ 0" in capsys.readouterr().err

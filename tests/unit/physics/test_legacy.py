@@ -1,0 +1,85 @@
+"""The paper's fixed-step schemes: observed convergence order and their interface."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from millctl.errors import PhysicsInputError
+from millctl.physics.methods import METHODS, first_impact
+from millctl.physics.model import Scene
+
+DTS = (4e-4, 2e-4, 1e-4, 5e-5)
+
+
+@pytest.fixture(scope="module")
+def scenes(set_a_corrected):
+    model = dataclasses.replace(set_a_corrected, n_rods=1)
+    return [Scene(model, 15.0 + 0.7 * k, 80.0, -0.5 * math.pi, 0.3 + 0.9 * k) for k in range(6)]
+
+
+def _observed_order(scenes, method):
+    refs = [first_impact(s) for s in scenes]
+    errors = []
+    for dt in DTS:
+        errs = []
+        for scene, ref in zip(scenes, refs, strict=True):
+            event = first_impact(scene, method, dt=dt)
+            assert event is not None and ref is not None and event.partner == ref.partner
+            errs.append(abs(event.time_s - ref.time_s))
+        errors.append(float(np.mean(errs)))
+    return float(np.polyfit(np.log(DTS), np.log(errors), 1)[0]), errors
+
+
+def test_paper_scheme_is_first_order(scenes):
+    """End-point averaging: mean time error ∝ dt (observed order ≈ 1)."""
+    order, errors = _observed_order(scenes, "legacy")
+    assert 0.8 < order < 1.4, errors
+    assert errors[-1] < DTS[-1]
+
+
+def test_linear_interpolation_is_second_order(scenes):
+    order, errors = _observed_order(scenes, "legacy-interp")
+    assert 1.6 < order < 2.4, errors
+
+
+def test_arcs_wall_approaches_the_circle(scenes):
+    """q arcs: the rod can sink between two points by at most the sagitta (π r_v/q)²/(2 r_r)."""
+    scene = scenes[0]
+    ref = first_impact(scene)
+    assert ref is not None
+    for q in (36, 360):
+        event = first_impact(scene, "legacy-arcs", dt=1e-5, q=q)
+        assert event is not None and event.partner == -1
+        m = scene.model
+        sag_m = (math.pi * m.vial_radius_m / q) ** 2 / (2 * m.rod_radius_m)
+        assert abs(event.time_s - ref.time_s) <= 1e-5 + sag_m / max(ref.normal_velocity_m_s, 1e-3)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_answers_the_same_question(scenes, method):
+    event = first_impact(scenes[1], method, dt=1e-5, tol=1e-9)
+    ref = first_impact(scenes[1])
+    assert event is not None and ref is not None
+    assert (event.rod, event.partner) == (ref.rod, ref.partner)
+    assert event.time_s == pytest.approx(ref.time_s, abs=2e-5)
+    assert event.method == method
+
+
+@pytest.mark.parametrize(
+    ("method", "kwargs"),
+    [
+        ("legacy", {}),
+        ("legacy", {"dt": 0.0}),
+        ("legacy", {"dt": -1e-3}),
+        ("legacy-arcs", {"dt": 1e-4, "q": 2}),
+        ("ivp", {"tol": 0.0}),
+        ("euler", {}),
+    ],
+)
+def test_bad_method_arguments_rejected(scenes, method, kwargs):
+    with pytest.raises(PhysicsInputError):
+        first_impact(scenes[0], method, **kwargs)  # type: ignore[arg-type]
