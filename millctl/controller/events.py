@@ -22,7 +22,7 @@ class EventKind(enum.StrEnum):
 
 @dataclass(frozen=True)
 class Event:
-    """One thing the controller did or saw, with its reason (docs/safety.md#visible-reasons)."""
+    """One thing the controller did or saw, with its reason (docs/safety.md#state-machine)."""
 
     time_s: float
     """Controller clock time (s)."""

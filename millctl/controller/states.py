@@ -8,7 +8,7 @@
                                    │
                                  reset ◀── TRIPPED ◀── any trip, from any state
 
-A trip latches: only RESET leaves TRIPPED (docs/safety.md#latched-trips).
+A trip latches: only RESET leaves TRIPPED (docs/safety.md#what-trips).
 """
 
 from __future__ import annotations
