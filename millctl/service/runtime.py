@@ -80,6 +80,7 @@ class ServiceRuntime:
             self.node = Node(config, self._node_bus, self.clock)
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256)
         self._halt = threading.Event()
+        self._closed = False
         self._thread = threading.Thread(target=self._loop, name="millctl-control-loop", daemon=True)
 
     # ------------------------------------------------------------------ lifecycle
@@ -209,11 +210,16 @@ class ServiceRuntime:
 
     def close(self) -> None:
         """Stop the loop and release the buses and the records (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
         self._halt.set()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
         with self.lock:
             self.bus.shutdown()
+            if self.node is not None:
+                self.node.close()  # its physics worker; the bus is ours
             if self._node_bus is not None:
                 self._node_bus.shutdown()
             self.journal.close()
