@@ -169,6 +169,7 @@ def _run(
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
         received.append(signal.Signals(signum).name)
+        runtime.stopping = True  # ends the event streams, so the server need not wait for them
         if server.should_exit:
             server.force_exit = True
         server.should_exit = True

@@ -1,0 +1,83 @@
+"""The client's error mapping, and what a user sees with no service or no node."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from millctl.cli import main
+from millctl.client import (
+    AccessDenied,
+    Client,
+    ControlHeld,
+    InterlockRefusal,
+    NodeUnavailable,
+    RequestInvalid,
+    ServiceRefused,
+    ServiceUnavailable,
+    raise_for_error,
+)
+from millctl.config import load_config
+from millctl.errors import ExitCode
+from millctl.service import ServiceRuntime, create_app
+from tests.unit.service.conftest import write_config
+
+
+def _response(status: int, body: dict[str, object]) -> httpx.Response:
+    return httpx.Response(status, json=body)
+
+
+@pytest.mark.parametrize(
+    ("status", "code", "error", "exit_code"),
+    [
+        (409, "interlock_refused", InterlockRefusal, ExitCode.INTERLOCK),
+        (409, "recipe_refused", InterlockRefusal, ExitCode.INTERLOCK),
+        (409, "wrong_state", ServiceRefused, ExitCode.INTERLOCK),
+        (423, "control_held", ControlHeld, ExitCode.INTERLOCK),
+        (422, "invalid_request", RequestInvalid, ExitCode.INVALID_INPUT),
+        (401, "unauthorized", AccessDenied, ExitCode.BUS),
+        (503, "node_unreachable", NodeUnavailable, ExitCode.BUS),
+    ],
+)
+def test_api_errors_map_to_exceptions_with_their_exit_codes(
+    status: int, code: str, error: type[Exception], exit_code: ExitCode
+) -> None:
+    body = {"code": code, "message": "because", "field": "body.rotary_rpm", "holder": "api:tui",
+            "refusals": [{"quantity": "omega_r", "value": 250.0, "limit": 190.0, "unit": "rpm", "reason": "r"}]}
+    with pytest.raises(error) as raised:
+        raise_for_error(_response(status, body), "service socket /x")
+    assert raised.value.exit_code is exit_code  # type: ignore[attr-defined]
+    if isinstance(raised.value, InterlockRefusal):
+        assert raised.value.refusals[0]["limit"] == 190.0
+    if isinstance(raised.value, ControlHeld):
+        assert raised.value.holder == "api:tui"
+    if isinstance(raised.value, RequestInvalid):
+        assert raised.value.field == "body.rotary_rpm"
+
+
+def test_no_service_names_the_socket_and_suggests_serve(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "nobody.sock"
+    with Client(missing) as client, pytest.raises(ServiceUnavailable) as raised:
+        client.status()
+    assert str(missing) in str(raised.value) and "millctl serve" in str(raised.value)
+    assert main(["status", "--socket", str(missing)]) == ExitCode.BUS
+    assert "millctl serve" in capsys.readouterr().err
+
+
+async def test_commands_without_a_node_are_503(tmp_path: Path) -> None:
+    runtime = ServiceRuntime(load_config(write_config(tmp_path)), embed_node=False)
+    runtime.start()
+    try:
+        transport = httpx.ASGITransport(app=create_app(runtime))
+        async with httpx.AsyncClient(transport=transport, base_url="http://millctl") as http:
+            taken = await http.post("/v1/control/take", headers={"X-Millctl-Client": "t"})
+            time.sleep(0.05)  # a few loop ticks: still no node on this channel
+            response = await http.post("/v1/arm", headers={"X-Millctl-Lease": taken.json()["lease_id"]})
+            assert response.status_code == 503
+            assert response.json()["code"] == "node_unreachable"
+            assert (await http.post("/v1/estop")).status_code == 200  # E-stop is always accepted
+    finally:
+        runtime.shutdown("test over", bound_s=0.5)
