@@ -92,6 +92,7 @@ class RecipeRunner:
         self._begun_index = -1
         """Index of the step whose start was recorded (a boundary pause defers it)."""
         self._pause_at_boundary = False
+        self._arm_sent = False
         self._finish_as = RunState.DONE
         self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1)
         self._write(
@@ -208,8 +209,9 @@ class RecipeRunner:
         c = self.controller
         now = self.clock.now()
         if self.state is RunState.STARTING:
-            if c.state is S.DISABLED:
+            if c.state is S.DISABLED and not self._arm_sent:
                 c.arm(self.source)
+                self._arm_sent = True
             if c.state in (S.ARMED, S.RUNNING):
                 self._enter(RunState.RUNNING, "armed")
                 self._begin_step()
