@@ -4,7 +4,8 @@ Corrected forms (docs/model.md, errata):
 
 * eq. 18 counts impacts per rod; the mill's rate is n·p·ω_r/2π;
 * eq. 19 uses the absolute speed; an impact dissipates ½ m_eff (1 − e²) v_n², with
-  v_n the relative normal velocity, m_eff = m against the wall and m/2 between rods;
+  v_n the relative normal velocity, m_eff = m against the wall or a rod held by it,
+  m/2 between two flying rods;
 * eq. 23: Hertz line contact b = √(4 N R' / (π L E*)), 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂
   (printed: E₂ twice and π/4);
 * eq. 24: a rod inside a bore is a concave contact, 1/R' = 1/R_r − 1/R_v (printed: a sum).
@@ -24,12 +25,16 @@ def impact_rate_hz(model: MillModel, collisions_per_rod_rev: float, omega_r_rad_
     return per_rod if model.variant is ModelVariant.PAPER else model.n_rods * per_rod
 
 
-def impact_energy_j(model: MillModel, normal_velocity_m_s: float, speed_abs_m_s: float, with_wall: bool) -> float:
-    """Energy of one impact (J): paper eq. 19 ½ m |v|²; corrected ½ m_eff (1 − e²) v_n²."""
+def impact_energy_j(model: MillModel, normal_velocity_m_s: float, speed_abs_m_s: float, backed: bool) -> float:
+    """Energy of one impact (J): paper eq. 19 ½ m |v|²; corrected ½ m_eff (1 − e²) v_n².
+
+    ``backed``: the partner is the wall or a rod held by it (m_eff = m); False for
+    a flying partner of equal mass (m_eff = m/2).
+    """
     m = model.rod_mass_kg
     if model.variant is ModelVariant.PAPER:
         return 0.5 * m * speed_abs_m_s**2
-    m_eff = m if with_wall else 0.5 * m
+    m_eff = m if backed else 0.5 * m
     return 0.5 * m_eff * (1.0 - model.restitution**2) * normal_velocity_m_s**2
 
 

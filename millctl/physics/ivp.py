@@ -49,8 +49,8 @@ class _Event:
 
 def ivp_first_contact(
     scene: Scene, tol: float, t_end_s: float = 5.0, method: str = "DOP853"
-) -> tuple[float, int, int, float, float, float, float] | None:
-    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod) of the first contact, or None.
+) -> tuple[float, int, int, float, float, float, float, bool] | None:
+    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod, partner backed by the wall) or None.
 
     ``tol`` is solve_ivp's rtol; atol = tol·r0 for positions and tol·r0·ω for velocities.
     """
@@ -98,7 +98,7 @@ def ivp_first_contact(
 
 def _contact(
     scene: Scene, slots: dict[int, int], ev: _Event, t: float, y: FloatArray
-) -> tuple[float, int, int, float, float, float, float]:
+) -> tuple[float, int, int, float, float, float, float, bool]:
     m = scene.model
     k = 4 * slots[ev.rod]
     x, yy, vx, vy = (float(v) for v in y[k : k + 4])
@@ -119,7 +119,8 @@ def _contact(
     norm = math.hypot(dx, dy)
     nx, ny = dx / norm, dy / norm
     r = m.rod_radius_m
-    return t, ev.rod, ev.partner, x + r * nx, yc + yy + r * ny, rvx * nx + rvy * ny, math.hypot(vx, vy + vyc)
+    backed = ev.partner < 0 or ev.partner not in slots
+    return t, ev.rod, ev.partner, x + r * nx, yc + yy + r * ny, rvx * nx + rvy * ny, math.hypot(vx, vy + vyc), backed
 
 
 __all__ = ["ivp_first_contact"]

@@ -53,8 +53,8 @@ def _lab_arrays(scene: Scene, wall: WallState, flight: FlightState | None, ts: F
 
 def legacy_first_contact(
     scene: Scene, dt_s: float, q: int | None = None, t_end_s: float = 5.0, interpolate: bool = False
-) -> tuple[float, int, int, float, float, float, float] | None:
-    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod) of the first contact, or None.
+) -> tuple[float, int, int, float, float, float, float, bool] | None:
+    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod, partner backed by the wall) or None.
 
     ``q`` None uses the exact circle for the wall; an integer uses q arcs.
     """
@@ -82,7 +82,10 @@ def legacy_first_contact(
         if hits.size:
             k = int(hits[0]) + 1
             pair = next(p for p, sep in seps.items() if sep[k] <= 0.0)
-            return _averaged(scene, lab, seps, pair, ts, k, interpolate)
+            t, i, j, x, y, v_n, speed = _averaged(scene, lab, seps, pair, ts, k, interpolate)
+            partner = flights[j] if j >= 0 else None
+            backed = j < 0 or partner is None or partner.t0_s >= t
+            return t, i, j, x, y, v_n, speed, backed
         k0 += _CHUNK
     return None
 

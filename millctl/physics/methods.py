@@ -55,9 +55,9 @@ class ImpactEvent:
     method: str
 
 
-def _event(scene: Scene, method: str, row: tuple[float, int, int, float, float, float, float]) -> ImpactEvent:
-    t, rod, partner, x, y, v_n, speed = row
-    energy = impact_energy_j(scene.model, v_n, speed, partner < 0)
+def _event(scene: Scene, method: str, row: tuple[float, int, int, float, float, float, float, bool]) -> ImpactEvent:
+    t, rod, partner, x, y, v_n, speed, backed = row
+    energy = impact_energy_j(scene.model, v_n, speed, backed)
     return ImpactEvent(t, rod, partner, x, y, v_n, speed, energy, method)
 
 

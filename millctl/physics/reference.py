@@ -120,7 +120,8 @@ def reference_first_impact(scene: Scene, digits: int = 40, t_end_s: float = 5.0)
         v_n = float(rvx * nx + rvy * ny)
         speed = float(mpmath.sqrt(vx * vx + (vy + vyc) ** 2))
         px, py = float(x + mp.rr * nx), float(yc + y + mp.rr * ny)
-        energy = impact_energy_j(scene.model, v_n, speed, j < 0)
+        backed = j < 0 or j not in t_d or t_d[j] >= t_c
+        energy = impact_energy_j(scene.model, v_n, speed, bool(backed))
         return ImpactEvent(float(t_c), i, j, px, py, v_n, speed, energy, f"mpmath-{digits}")
 
 

@@ -131,7 +131,8 @@ def _record(run: _Run, c: Contact) -> None:
     r = model.rod_radius_m
     px, py = x + r * c.normal_x, yc + y + r * c.normal_y
     speed = math.hypot(vx, vy + vyc)
-    energy = impact_energy_j(model, c.normal_velocity_m_s, speed, c.partner == WALL)
+    backed = c.partner == WALL or isinstance(run.states[c.partner], WallState)
+    energy = impact_energy_j(model, c.normal_velocity_m_s, speed, backed)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * c.time_s) % (2.0 * math.pi)
     flight = c.time_s - s.t0_s
     velocities = (c.normal_velocity_m_s, c.tangential_velocity_m_s, speed)

@@ -102,7 +102,7 @@ def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
     vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
     speed_abs = math.hypot(vx, vy + vyc)
     on_wall = contact.partner == WALL
-    energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, on_wall)
+    energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, backed=True)  # partners are held
     if on_wall:
         x, y, _, _ = flight.rel(scene, contact.time_s)
         travel = (det.theta_rad - math.atan2(y, x)) % (2.0 * math.pi)
