@@ -19,6 +19,7 @@ import logging
 import os
 import signal
 import socket
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
@@ -63,7 +64,10 @@ class _Server(uvicorn.Server):
 def instance_lock(socket_path: Path) -> Iterator[IO[str]]:
     """Hold ``<socket>.lock`` for the service's life; raise :class:`ServiceRunning` if another holds it."""
     lock_path = socket_path.with_name(socket_path.name + ".lock")
-    handle = open(lock_path, "a+", encoding="utf-8")  # noqa: SIM115 - held for the context
+    try:
+        handle = open(lock_path, "a+", encoding="utf-8")  # noqa: SIM115 - held for the context
+    except OSError as exc:
+        raise BusError(f"cannot open the service lock {lock_path}: {exc.strerror}") from exc
     try:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -87,6 +91,8 @@ def _clear_stale_socket(path: Path) -> None:
     """Remove a socket file nobody listens on; refuse if something does."""
     if not path.exists() and not path.is_symlink():
         return
+    if not stat.S_ISSOCK(path.lstat().st_mode):
+        raise BusError(f"{path} exists and is not a socket: refusing to replace it (service.socket_path / --socket)")
     probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         probe.settimeout(1.0)
@@ -138,7 +144,10 @@ def serve(
             raise ConfigError(loaded.source, [f"{loaded.source}: service.tcp_port = {service.tcp_port} needs "
                                               "service.token_file (a bearer token); refusing to serve TCP without"])
         token = read_token(service.token_file)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BusError(f"cannot create the socket directory {path.parent}: {exc.strerror}") from exc
     with instance_lock(path):
         _clear_stale_socket(path)
         sockets = [bind_unix(path, service.socket_mode)]

@@ -1,15 +1,18 @@
-"""Loopback TCP needs a bearer token; without a token file the service refuses to serve TCP; stale sockets go."""
+"""Starting the service: TCP only with a bearer token, stale sockets replaced, anything else left alone."""
 
 from __future__ import annotations
 
 import socket
+from pathlib import Path
 
 import httpx
 import pytest
 
 from millctl.cli import main
 from millctl.client import AccessDenied, Client
-from millctl.errors import ExitCode
+from millctl.config import load_config
+from millctl.errors import BusError, ExitCode
+from millctl.service import serve
 from tests.unit.service.conftest import private_dir, start_service, write_config
 
 TOKEN = "s3cret-token-for-the-test-0123456789"
@@ -55,3 +58,12 @@ def test_tcp_without_a_token_file_refuses_to_start(capsys: pytest.CaptureFixture
         assert main(["--config", str(config), "serve"]) == ExitCode.INVALID_INPUT
         assert "token_file" in capsys.readouterr().err
         assert not (directory / "mill.sock").exists()
+
+
+def test_a_file_in_the_way_of_the_socket_is_never_replaced(tmp_path: Path) -> None:
+    config = write_config(tmp_path)
+    in_the_way = tmp_path / "mill.sock"
+    in_the_way.write_text("keep me")
+    with pytest.raises(BusError, match="not a socket"):
+        serve(load_config(config))
+    assert in_the_way.read_text() == "keep me"
