@@ -98,6 +98,7 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
             "contact_x_m": event.x_m,
             "contact_y_m": event.y_m,
             "normal_velocity_m_s": event.normal_velocity_m_s,
+            "tangential_velocity_m_s": event.tangential_velocity_m_s,
             "energy_j": event.energy_j,
         }
     summary = revolution_summary(model, w_r, w_v)
@@ -132,9 +133,10 @@ def _run(args: argparse.Namespace) -> int:
     if det is None:
         out.print("first detachment: none within 5 s — the rods stay pinned to the wall")
     else:
+        unsupported = " (it starts where N ≤ 0)" if det["time_s"] == 0.0 else ""
         out.print(
             f"first detachment: rod {det['rod']} at t = {det['time_s']:.6f} s, "
-            f"θ_d = {det['theta_d_deg']:.3f}°, α_d = {det['alpha_d_deg']:.3f}°"
+            f"θ_d = {det['theta_d_deg']:.3f}°, α_d = {det['alpha_d_deg']:.3f}°{unsupported}"
         )
     imp = report["first_impact"]
     if imp is None:

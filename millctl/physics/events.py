@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import brentq
@@ -30,6 +31,21 @@ WALL = -1
 _XTOL_S = 1e-300
 _RTOL = 4.0 * 2.220446049250313e-16
 _SCAN_SAMPLES = 32
+
+
+class ContactRow(NamedTuple):
+    """A located contact as the comparison methods report it (lab frame, SI)."""
+
+    time_s: float
+    rod: int
+    partner: int
+    x_m: float
+    y_m: float
+    normal_velocity_m_s: float
+    tangential_velocity_m_s: float
+    speed_abs_m_s: float
+    backed: bool
+    """The partner is the wall or a rod held by it (m_eff = m)."""
 
 
 @dataclass(frozen=True)
@@ -315,6 +331,7 @@ def _resolve(
 __all__ = [
     "WALL",
     "Contact",
+    "ContactRow",
     "contact_kinematics",
     "earliest_contact",
     "first_contact_time",

@@ -17,6 +17,7 @@ from scipy.integrate import solve_ivp
 
 from millctl.errors import PhysicsInputError
 from millctl.physics.detachment import find_detachment
+from millctl.physics.events import ContactRow
 from millctl.physics.flight import FlightState, WallState, depart
 from millctl.physics.model import Scene
 
@@ -47,10 +48,8 @@ class _Event:
         return (x - xb) ** 2 + (yy - yb) ** 2 - m.contact_distance_m**2
 
 
-def ivp_first_contact(
-    scene: Scene, tol: float, t_end_s: float = 5.0, method: str = "DOP853"
-) -> tuple[float, int, int, float, float, float, float, bool] | None:
-    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod, partner backed by the wall) or None.
+def ivp_first_contact(scene: Scene, tol: float, t_end_s: float = 5.0, method: str = "DOP853") -> ContactRow | None:
+    """The first contact found by solve_ivp's event location, or None.
 
     ``tol`` is solve_ivp's rtol; atol = tol·r0 for positions and tol·r0·ω for velocities.
     """
@@ -96,9 +95,7 @@ def ivp_first_contact(
     return None
 
 
-def _contact(
-    scene: Scene, slots: dict[int, int], ev: _Event, t: float, y: FloatArray
-) -> tuple[float, int, int, float, float, float, float, bool]:
+def _contact(scene: Scene, slots: dict[int, int], ev: _Event, t: float, y: FloatArray) -> ContactRow:
     m = scene.model
     k = 4 * slots[ev.rod]
     x, yy, vx, vy = (float(v) for v in y[k : k + 4])
@@ -120,7 +117,8 @@ def _contact(
     nx, ny = dx / norm, dy / norm
     r = m.rod_radius_m
     backed = ev.partner < 0 or ev.partner not in slots
-    return t, ev.rod, ev.partner, x + r * nx, yc + yy + r * ny, rvx * nx + rvy * ny, math.hypot(vx, vy + vyc), backed
+    v_n, v_t = rvx * nx + rvy * ny, rvy * nx - rvx * ny
+    return ContactRow(t, ev.rod, ev.partner, x + r * nx, yc + yy + r * ny, v_n, v_t, math.hypot(vx, vy + vyc), backed)
 
 
 __all__ = ["ivp_first_contact"]

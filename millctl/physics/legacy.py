@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from millctl.errors import PhysicsInputError
 from millctl.physics.detachment import find_detachment
+from millctl.physics.events import ContactRow
 from millctl.physics.flight import FlightState, WallState, depart
 from millctl.physics.model import Scene
 
@@ -53,8 +54,8 @@ def _lab_arrays(scene: Scene, wall: WallState, flight: FlightState | None, ts: F
 
 def legacy_first_contact(
     scene: Scene, dt_s: float, q: int | None = None, t_end_s: float = 5.0, interpolate: bool = False
-) -> tuple[float, int, int, float, float, float, float, bool] | None:
-    """(t, rod, partner, contact x, contact y, v_n, |v| of the rod, partner backed by the wall) or None.
+) -> ContactRow | None:
+    """The first contact by the paper's scheme, or None.
 
     ``q`` None uses the exact circle for the wall; an integer uses q arcs.
     """
@@ -82,10 +83,10 @@ def legacy_first_contact(
         if hits.size:
             k = int(hits[0]) + 1
             pair = next(p for p, sep in seps.items() if sep[k] <= 0.0)
-            t, i, j, x, y, v_n, speed = _averaged(scene, lab, seps, pair, ts, k, interpolate)
+            t, i, j, x, y, v_n, v_t, speed = _averaged(scene, lab, seps, pair, ts, k, interpolate)
             partner = flights[j] if j >= 0 else None
             backed = j < 0 or partner is None or partner.t0_s >= t
-            return t, i, j, x, y, v_n, speed, backed
+            return ContactRow(t, i, j, x, y, v_n, v_t, speed, backed)
         k0 += _CHUNK
     return None
 
@@ -129,7 +130,7 @@ def _averaged(
     ts: FloatArray,
     k: int,
     interpolate: bool,
-) -> tuple[float, int, int, float, float, float, float]:
+) -> tuple[float, int, int, float, float, float, float, float]:
     """The paper's answer: the average of the step's end points (or the interpolated time)."""
     i, j = pair
 
@@ -156,7 +157,7 @@ def _averaged(
         dx, dy, rvx, rvy = xb - x, yb - y, vx - vxb, vy - vyb
     norm = math.hypot(dx, dy)
     nx, ny = dx / norm, dy / norm
-    return t, i, j, x + r * nx, y + r * ny, rvx * nx + rvy * ny, math.hypot(vx, vy)
+    return t, i, j, x + r * nx, y + r * ny, rvx * nx + rvy * ny, rvy * nx - rvx * ny, math.hypot(vx, vy)
 
 
 __all__ = ["legacy_first_contact"]

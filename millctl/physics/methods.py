@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from millctl.errors import PhysicsInputError
+from millctl.physics.events import ContactRow
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.ivp import ivp_first_contact
 from millctl.physics.legacy import legacy_first_contact
@@ -53,12 +54,24 @@ class ImpactEvent:
     energy_j: float
     """Impact energy in the scene's variant (eq. 19 or ½ m_eff (1 − e²) v_n²)."""
     method: str
+    tangential_velocity_m_s: float = math.nan
+    """Sliding speed of the rod's surface against the partner's (m/s)."""
 
 
-def _event(scene: Scene, method: str, row: tuple[float, int, int, float, float, float, float, bool]) -> ImpactEvent:
-    t, rod, partner, x, y, v_n, speed, backed = row
-    energy = impact_energy_j(scene.model, v_n, speed, backed)
-    return ImpactEvent(t, rod, partner, x, y, v_n, speed, energy, method)
+def _event(scene: Scene, method: str, row: ContactRow) -> ImpactEvent:
+    energy = impact_energy_j(scene.model, row.normal_velocity_m_s, row.speed_abs_m_s, row.backed)
+    return ImpactEvent(
+        row.time_s,
+        row.rod,
+        row.partner,
+        row.x_m,
+        row.y_m,
+        row.normal_velocity_m_s,
+        row.speed_abs_m_s,
+        energy,
+        method,
+        row.tangential_velocity_m_s,
+    )
 
 
 def first_impact(
@@ -90,6 +103,7 @@ def first_impact(
             float(r["speed_abs_m_s"]),
             float(r["energy_j"]),
             method,
+            float(r["tangential_velocity_m_s"]),
         )
     if method == "ivp":
         row = ivp_first_contact(scene, 1e-10 if tol is None else tol, t_end_s)

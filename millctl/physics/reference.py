@@ -122,7 +122,8 @@ def reference_first_impact(scene: Scene, digits: int = 40, t_end_s: float = 5.0)
         px, py = float(x + mp.rr * nx), float(yc + y + mp.rr * ny)
         backed = j < 0 or j not in t_d or t_d[j] >= t_c
         energy = impact_energy_j(scene.model, v_n, speed, bool(backed))
-        return ImpactEvent(float(t_c), i, j, px, py, v_n, speed, energy, f"mpmath-{digits}")
+        v_t = float(rvy * nx - rvx * ny)
+        return ImpactEvent(float(t_c), i, j, px, py, v_n, speed, energy, f"mpmath-{digits}", v_t)
 
 
 __all__ = ["closed_form_flight_time_s", "reference_first_impact"]

@@ -34,6 +34,7 @@ def test_first_impact_matches_mpmath(set_a, seed):
     assert math.hypot(event.x_m - ref.x_m, event.y_m - ref.y_m) < 1e-11
     assert event.normal_velocity_m_s == pytest.approx(ref.normal_velocity_m_s, rel=1e-8, abs=1e-12)
     assert event.energy_j == pytest.approx(ref.energy_j, rel=1e-8, abs=1e-15)
+    assert event.tangential_velocity_m_s == pytest.approx(ref.tangential_velocity_m_s, rel=1e-8, abs=1e-12)
 
 
 def test_ivp_converges_to_the_reference(set_a_corrected):

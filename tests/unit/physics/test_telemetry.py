@@ -83,3 +83,30 @@ def test_packing_limit_is_exact(set_a):
     assert ok.n_rods == 6
     with pytest.raises(PhysicsInputError, match="packing limit"):
         dataclasses.replace(set_a, rod_radius_m=r_v / 3 * (1 + 1e-9), n_rods=6)
+
+
+def test_summary_cache_rounds_to_its_grid(set_a_corrected):
+    from millctl.physics.telemetry import SummaryCache
+
+    cache = SummaryCache(set_a_corrected, step_rpm=1.0)
+    a = cache(rpm_to_rad_s(150.2), rpm_to_rad_s(799.9))
+    assert a is cache(rpm_to_rad_s(149.8), rpm_to_rad_s(800.3))
+    assert a == revolution_summary(set_a_corrected, rpm_to_rad_s(150.0), rpm_to_rad_s(800.0))
+    with pytest.raises(PhysicsInputError):
+        SummaryCache(set_a_corrected, step_rpm=0.0)
+
+
+def test_start_angle_shortcut_matches_the_bottom_start(set_a_corrected):
+    """Starting each sample where detachment first becomes possible gives the same θ_d as starting at the bottom."""
+    from millctl.physics.detachment import find_detachment
+    from millctl.physics.model import Scene
+    from millctl.physics.telemetry import _start_angle_rad
+
+    w_r, w_v = rpm_to_rad_s(120.0), rpm_to_rad_s(800.0)
+    start = _start_angle_rad(set_a_corrected, w_r, w_v)
+    assert start is not None and -0.5 * math.pi < start
+    bottom = Scene(set_a_corrected, w_r, w_v, -0.5 * math.pi, 0.3)
+    det = find_detachment(bottom)
+    t_s = (start + 0.5 * math.pi) / w_r  # when the bottom-started rod reaches the start angle
+    later = Scene(set_a_corrected, w_r, w_v, start, 0.3 + w_v * t_s)
+    assert find_detachment(later).theta_rad == pytest.approx(det.theta_rad, abs=1e-9)
