@@ -227,27 +227,47 @@ class Spawner:
         return self._logs[proc.pid].read_text(errors="replace")
 
     def stop(self, proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM, grace_s: float = 5.0) -> int:
-        """Send ``sig`` to ``proc``'s process group, SIGKILL after ``grace_s`` (scaled); return its exit code."""
+        """Send ``sig`` to ``proc``'s process group, SIGKILL after ``grace_s`` (scaled); return its exit code.
+
+        The grace covers the whole group: helpers the child started
+        (multiprocessing workers, its resource tracker) get it too.
+        """
         _signal_group(proc.pid, sig)
+        deadline = time.monotonic() + grace_s * self.scale
         try:
-            return proc.wait(grace_s * self.scale)
+            rc = proc.wait(grace_s * self.scale)
         except subprocess.TimeoutExpired:
             _signal_group(proc.pid, signal.SIGKILL)
-            return proc.wait()
+            rc = proc.wait()
+        if _wait_group_gone(proc.pid, deadline - time.monotonic()):
+            _signal_group(proc.pid, signal.SIGKILL)
+            _wait_group_gone(proc.pid, KILL_WAIT_S * self.scale)
+        return rc
 
     def cleanup(self) -> list[str]:
-        """Kill and reap every child; return a description of each one that was still running."""
+        """Kill and reap every child; return a description of each one that was still running.
+
+        A child that exited may leave helpers that are exiting by themselves
+        (a multiprocessing resource tracker notices its parent's exit a moment
+        later): they get ``LINGER_S`` (scaled) before they count as leaked.
+        """
         leaked = []
         for proc in self._procs:
-            # poll() first: it reaps an exited leader, so only live members remain in its group.
-            if proc.poll() is None or _live_group_members(proc.pid):
-                leaked.append(f"{proc.args!r} (pid {proc.pid}); its output:\n{self.output(proc)[-2000:]}")
+            running = proc.poll() is None  # poll() reaps an exited leader, so only its group is left
+            stragglers = [] if running else _wait_group_gone(proc.pid, LINGER_S * self.scale)
+            if running or stragglers:
+                who = ", ".join(_describe(pid) for pid in stragglers) or "itself"
+                leaked.append(
+                    f"{proc.args!r} (pid {proc.pid}; left running: {who}); its output:\n{self.output(proc)[-2000:]}"
+                )
             _signal_group(proc.pid, signal.SIGKILL)
             proc.wait()
-            deadline = time.monotonic() + 5.0 * self.scale
-            while _live_group_members(proc.pid) and time.monotonic() < deadline:
-                time.sleep(0.01)  # SIGKILL is delivered, not yet acted on
+            _wait_group_gone(proc.pid, KILL_WAIT_S * self.scale)  # SIGKILL is delivered, not yet acted on
         return leaked
+
+
+LINGER_S = 2.0  # how long an exited child's helpers may take to exit by themselves
+KILL_WAIT_S = 5.0  # how long SIGKILLed processes may take to disappear
 
 
 def _signal_group(pgid: int, sig: int) -> None:
@@ -271,6 +291,22 @@ def _live_group_members(pgid: int) -> list[int]:
         if pgrp == pgid and state not in ("Z", "X"):
             pids.append(int(stat.parent.name))
     return pids
+
+
+def _wait_group_gone(pgid: int, timeout_s: float) -> list[int]:
+    """Wait up to ``timeout_s`` for group ``pgid`` to have no live member; return those still alive."""
+    deadline = time.monotonic() + timeout_s
+    while (alive := _live_group_members(pgid)) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return alive
+
+
+def _describe(pid: int) -> str:
+    try:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+    except OSError:
+        cmdline = "?"
+    return f"pid {pid} [{cmdline[:120]}]"
 
 
 @pytest.fixture
