@@ -85,8 +85,11 @@ def _shutdown(node: Node, tick_s: float) -> None:
         time.sleep(tick_s)
     log.info(
         "shut down: speeds %.1f/%.1f rpm, heater %s, %d ticks, mean %.3f ms, max %.3f ms",
-        *node.true_speeds_rpm, "on" if node.heater_on else "off", node.tick_count,
-        node.tick_mean_s * 1e3, node.tick_max_s * 1e3,
+        *node.true_speeds_rpm,
+        "on" if node.heater_on else "off",
+        node.tick_count,
+        node.tick_mean_s * 1e3,
+        node.tick_max_s * 1e3,
     )
 
 
@@ -99,8 +102,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         bus_config = config.bus
         if args.interface or args.channel:
             bus_config = Bus.model_validate(
-                bus_config.model_dump() | {k: v for k, v in (("interface", args.interface),
-                                                              ("channel", args.channel)) if v}
+                bus_config.model_dump()
+                | {k: v for k, v in (("interface", args.interface), ("channel", args.channel)) if v}
             )
         bus = open_bus(bus_config)
     except MillctlError as exc:

@@ -59,8 +59,13 @@ class FaultInjector:
                 self._set(code, False, 0.0)
         else:
             self._set(frame.fault, frame.active, frame.param)
-        log.warning("fault injection: %s %s (param %g); active now: %s", frame.fault.name,
-                    "on" if frame.active else "off", frame.param, sorted(c.name for c in self.active) or "none")
+        log.warning(
+            "fault injection: %s %s (param %g); active now: %s",
+            frame.fault.name,
+            "on" if frame.active else "off",
+            frame.param,
+            sorted(c.name for c in self.active) or "none",
+        )
 
     def _set(self, code: SimFaultCode, on: bool, param: float) -> None:
         drives, furnace = self._drives, self._furnace

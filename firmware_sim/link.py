@@ -39,8 +39,13 @@ class LinkMonitor:
         receiver = self.receivers[decoded.kind]
         status = receiver.check(decoded)
         if not status.fresh:
-            log.debug("%s frame %s (counter %s, E2E score %d)", decoded.kind.__name__, status.value,
-                      decoded.counter, receiver.score)
+            log.debug(
+                "%s frame %s (counter %s, E2E score %d)",
+                decoded.kind.__name__,
+                status.value,
+                decoded.counter,
+                receiver.score,
+            )
         elif decoded.kind is Heartbeat:
             self.last_heartbeat_s = now_s
             self.fresh_heartbeats += 1

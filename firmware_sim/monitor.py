@@ -81,9 +81,7 @@ class SpeedMonitor:
         """Consecutive ticks with the measured pair outside the envelope."""
         self.overspeed = 0
 
-    def check(
-        self, measured: tuple[float, float], reference: tuple[float, float], dt_s: float
-    ) -> FaultFlag:
+    def check(self, measured: tuple[float, float], reference: tuple[float, float], dt_s: float) -> FaultFlag:
         """Faults seen in this tick's readings (rpm) against the reference speeds (rpm)."""
         m_r, m_v = measured
         faults = self.rotary.check(m_r, reference[0], dt_s) | self.vibration.check(m_v, reference[1], dt_s)

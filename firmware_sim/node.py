@@ -21,7 +21,7 @@ from firmware_sim.furnace import FurnaceModel
 from firmware_sim.link import GUARDED, LinkMonitor
 from firmware_sim.monitor import SpeedMonitor
 from firmware_sim.motion import Motion
-from firmware_sim.telemetry import PhysicsCache, Schedule
+from firmware_sim.telemetry import PhysicsCache, PhysicsWorker, Schedule
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.protocol import (
@@ -67,7 +67,7 @@ class Node:
         fault_injection: bool = False,
         seed: int = 0,
         codec: Codec | None = None,
-        physics_thread: bool = True,
+        physics_worker: PhysicsWorker = "thread",
     ) -> None:
         self.config = config
         self.bus = bus
@@ -81,7 +81,7 @@ class Node:
         self.monitor = SpeedMonitor(config, self.envelope)
         self.motion = Motion(config, self.envelope)
         self.schedule = Schedule(self.codec)
-        self.physics = PhysicsCache(config, threaded=physics_thread)
+        self.physics = PhysicsCache(config, worker=physics_worker)
         self._counters: dict[type[MillMessage], AliveCounter] = {
             kind: AliveCounter() for kind in (NodeStatus, DriveTelemetry, FurnaceTelemetry)
         }
@@ -99,11 +99,14 @@ class Node:
         self.tick_count = 0
         self._tick_total_s = 0.0
         self._tick_max_s = 0.0
-        log.info("node DISABLED (envelope %s, fault injection %s)", self.envelope.description,
-                 "on" if fault_injection else "off")
+        log.info(
+            "node DISABLED (envelope %s, fault injection %s)",
+            self.envelope.description,
+            "on" if fault_injection else "off",
+        )
 
     def close(self) -> None:
-        """Release the physics worker thread (the bus belongs to the caller)."""
+        """Release the physics worker (the bus belongs to the caller)."""
         self.physics.close()
 
     # -- read-only views for tests and benchmarks ------------------------------------------------
@@ -406,8 +409,7 @@ class Node:
 
     def _frame(self, kind: type[MillMessage]) -> MillMessage:
         if kind is NodeStatus:
-            return NodeStatus(self._state, self._fault_bits, self._first_fault, self._refused % 256,
-                              self._last_refusal)
+            return NodeStatus(self._state, self._fault_bits, self._first_fault, self._refused % 256, self._last_refusal)
         if kind is DriveTelemetry:
             torque_r, torque_v = self.drives.torques_nm()
             return self.codec.saturated(DriveTelemetry(*self._measured, torque_r, torque_v))

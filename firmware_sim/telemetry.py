@@ -11,12 +11,14 @@ the frame is due, and on a worker thread — which keeps the 100 Hz tick budget.
 
 from __future__ import annotations
 
+import logging
 import math
-from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Literal
 
+from firmware_sim.physics_worker import ThreadWorker
 from millctl.config.models import MillConfig
 from millctl.physics.model import MillModel
-from millctl.physics.telemetry import revolution_summary
+from millctl.physics.telemetry import RevolutionSummary, revolution_summary
 from millctl.protocol import (
     Codec,
     DriveTelemetry,
@@ -27,6 +29,8 @@ from millctl.protocol import (
 )
 from millctl.protocol.errors import ProtocolError
 from millctl.units import rpm_to_rad_s
+
+log = logging.getLogger(__name__)
 
 PERIODIC: tuple[type[MillMessage], ...] = (NodeStatus, DriveTelemetry, FurnaceTelemetry, PhysicsTelemetry)
 """The node's periodic messages, in the order they are sent when due together."""
@@ -59,54 +63,67 @@ class Schedule:
         return kinds
 
 
+PhysicsWorker = Literal["thread", "inline"]
+"""Where the physics summary runs: on a worker thread, or inside the tick."""
+
+
 class PhysicsCache:
     """The last physics summary, recomputed when the measured speeds moved enough.
 
     One summary takes 0.2 ms to ~100 ms (slowest at a crawl with fast
     vibration, where a rod's flight is long), far more than a 10 ms tick, so
-    by default it runs on one worker thread and the frame carries the latest
-    finished summary; ``threaded=False`` computes in the caller (deterministic,
-    for tests).
+    it runs off the tick (:mod:`firmware_sim.physics_worker`) and the frame
+    carries the latest finished summary. ``"inline"`` computes in the tick
+    (deterministic, for tests that read the values).
     """
 
-    def __init__(self, config: MillConfig, *, threaded: bool = True) -> None:
+    def __init__(self, config: MillConfig, *, worker: PhysicsWorker = "thread") -> None:
         self.model = MillModel.from_config(config)
         self._requested: tuple[float, float] | None = None
         self._frame = PhysicsTelemetry(False, 0.0, 0.0, 0.0, 0.0)
-        self._pending: Future[PhysicsTelemetry] | None = None
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="physics") if threaded else None
+        self._worker = ThreadWorker(self.model) if worker == "thread" else None
         self.computations = 0
+        self.broken = False
+        """True after the worker failed; the last frame is then repeated."""
 
     def frame(self, codec: Codec, omega_r_rpm: float, omega_v_rpm: float) -> PhysicsTelemetry:
         """The PhysicsTelemetry for the measured speeds (rpm): the cached one unless they moved enough."""
-        pending = self._pending
-        if pending is not None and pending.done():
-            self._frame = pending.result()
-            self._pending = pending = None
+        worker = self._worker
+        if worker is not None:
+            try:
+                summary = worker.poll()
+            except Exception as exc:  # a broken worker must not stop the node: keep the last frame
+                log.warning("physics worker failed (%s: %s); physics telemetry is frozen", type(exc).__name__, exc)
+                self.broken = True
+                self.close()
+                return self._frame
+            if summary is not None:
+                self._frame = _frame_of(codec, summary)
         last = self._requested
         moved = (
             last is None
             or abs(omega_r_rpm - last[0]) > PHYSICS_RECOMPUTE_RPM
             or abs(omega_v_rpm - last[1]) > PHYSICS_RECOMPUTE_RPM
         )
-        if moved and pending is None:
+        if moved and not self.broken and (worker is None or not worker.busy):
             self._requested = (omega_r_rpm, omega_v_rpm)
             self.computations += 1
-            if self._executor is None:
-                self._frame = _summarise(self.model, codec, omega_r_rpm, omega_v_rpm)
+            omega_r, omega_v = rpm_to_rad_s(omega_r_rpm), rpm_to_rad_s(omega_v_rpm)
+            if worker is None:
+                self._frame = _frame_of(codec, revolution_summary(self.model, omega_r, omega_v))
             else:
-                self._pending = self._executor.submit(_summarise, self.model, codec, omega_r_rpm, omega_v_rpm)
+                worker.submit(omega_r, omega_v)
         return self._frame
 
     def close(self) -> None:
-        """Stop the worker thread (a running summary finishes; none is started)."""
-        if self._executor is not None:
-            self._executor.shutdown(wait=False, cancel_futures=True)
+        """Stop the worker."""
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None
 
 
-def _summarise(model: MillModel, codec: Codec, omega_r_rpm: float, omega_v_rpm: float) -> PhysicsTelemetry:
-    """The level-(b) summary at the measured speeds (rpm) as a frame, saturated into the DBC ranges."""
-    summary = revolution_summary(model, rpm_to_rad_s(omega_r_rpm), rpm_to_rad_s(omega_v_rpm))
+def _frame_of(codec: Codec, summary: RevolutionSummary) -> PhysicsTelemetry:
+    """A level-(b) summary as a frame, saturated into the DBC ranges (nan → 0)."""
     theta_deg = math.degrees(summary.theta_d_rad) % 360.0 if summary.detached else 0.0
 
     def finite(value: float) -> float:
@@ -123,4 +140,4 @@ def _summarise(model: MillModel, codec: Codec, omega_r_rpm: float, omega_v_rpm: 
     )
 
 
-__all__ = ["PERIODIC", "PHYSICS_RECOMPUTE_RPM", "PhysicsCache", "Schedule"]
+__all__ = ["PERIODIC", "PHYSICS_RECOMPUTE_RPM", "PhysicsCache", "PhysicsWorker", "Schedule"]

@@ -11,6 +11,7 @@ import can
 import pytest
 
 from firmware_sim.node import Node
+from firmware_sim.telemetry import PhysicsWorker
 from millctl.clock import ManualClock
 from millctl.config import MillConfig
 from millctl.protocol import (
@@ -35,7 +36,12 @@ class Bench:
     """The node under test and a controller stand-in that sends heartbeats, commands and setpoints."""
 
     def __init__(
-        self, config: MillConfig, *, fault_injection: bool = False, seed: int = 0, physics_thread: bool = True
+        self,
+        config: MillConfig,
+        *,
+        fault_injection: bool = False,
+        seed: int = 0,
+        physics_worker: PhysicsWorker = "thread",
     ) -> None:
         self.config = config
         self.channel = f"node-test-{uuid.uuid4().hex}"
@@ -43,7 +49,7 @@ class Bench:
         self.ctl_bus = can.Bus(interface="virtual", channel=self.channel, receive_own_messages=False)
         self.clock = ManualClock(100.0)
         self.node = Node(
-            config, self.node_bus, self.clock, fault_injection=fault_injection, seed=seed, physics_thread=physics_thread
+            config, self.node_bus, self.clock, fault_injection=fault_injection, seed=seed, physics_worker=physics_worker
         )
         self.codec = default_codec()
         self.envelope = Envelope.from_config(config)

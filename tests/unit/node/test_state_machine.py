@@ -71,9 +71,11 @@ def test_stop_command_plans_a_controlled_stop_inside_the_envelope(bench: Bench) 
     bench.hold = None
     outside: list[tuple[float, float]] = []
     bench.on_tick.append(
-        lambda b: outside.append(b.node.measured_speeds_rpm)
-        if not b.envelope.check_measured(*b.node.measured_speeds_rpm).ok
-        else None
+        lambda b: (
+            outside.append(b.node.measured_speeds_rpm)
+            if not b.envelope.check_measured(*b.node.measured_speeds_rpm).ok
+            else None
+        )
     )
     bench.step(0.02)
     assert node.state is NodeState.STOPPING

@@ -29,7 +29,7 @@ def test_drive_telemetry_reports_the_measured_speeds(bench: Bench) -> None:
 
 
 def test_physics_telemetry_follows_the_operating_point(make_bench: Callable[..., Bench]) -> None:
-    bench = make_bench(physics_thread=False)
+    bench = make_bench(physics_worker="inline")
     bench.step(0.2)
     assert bench.latest(PhysicsTelemetry).detached is False
     bench.arm()
