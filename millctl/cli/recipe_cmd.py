@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.cli.recipe_run_cmd import register_run
 from millctl.config import load_config
 from millctl.errors import ExitCode, RecipeError
 from millctl.recipes import RecipePlan, load_recipe, plan_recipe
@@ -25,10 +26,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     plan.add_argument("file")
     plan.add_argument("--json", action="store_true", help="machine-readable output")
     plan.set_defaults(handler=_plan)
-    try:
-        from millctl.cli.recipe_run_cmd import register_run
-    except ImportError:  # the runner arrives with the service
-        return
     register_run(sub)
 
 

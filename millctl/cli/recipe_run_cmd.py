@@ -1,0 +1,239 @@
+"""``millctl recipe run|pause|resume|abort|status``: run recipes in the controller service.
+
+``recipe run`` pre-flights the recipe, connects to the service (starting the
+embedded default service and simulated node in a process of its own when none
+is running), starts the run, and follows it with a progress display on
+stderr and a summary on stdout. The run lives in the service, so closing the
+terminal does not stop it. Ctrl+C once pauses the run now; twice aborts it
+with a controlled stop. A trip or an abort ends with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.errors import BusError, ExitCode
+
+POLL_S = 0.5
+"""How often the progress display asks the service (s)."""
+SERVICE_START_TIMEOUT_S = 60.0
+LEASE_RENEW_S = 10.0
+
+
+def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``recipe run``, ``pause``, ``resume``, ``abort`` and ``status``."""
+    socket_opt = argparse.ArgumentParser(add_help=False)
+    socket_opt.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path)")
+    run = sub.add_parser(
+        "run", parents=[socket_opt], help="run a recipe in the service (starts the embedded one if needed)"
+    )
+    run.add_argument("file")
+    run.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run.add_argument("--detach", action="store_true", help="start the run and return; follow it with `recipe status`")
+    run.set_defaults(handler=_run)
+    pause = sub.add_parser("pause", parents=[socket_opt], help="pause the running recipe at the next step boundary")
+    pause.add_argument("--now", action="store_true", help="pause now, holding the current setpoints")
+    pause.set_defaults(handler=_action, action="pause")
+    for name, text in (("resume", "resume a paused or held run"), ("abort", "abort the run: controlled stop")):
+        sub.add_parser(name, parents=[socket_opt], help=text).set_defaults(handler=_action, action=name)
+    status = sub.add_parser("status", parents=[socket_opt], help="progress of the current or last run")
+    status.add_argument("--json", action="store_true")
+    status.set_defaults(handler=_status)
+
+
+def _client(args: argparse.Namespace, name: str = "recipe") -> Any:
+    from millctl.client import Client
+
+    return Client(args.socket, config=args.config, name=name)
+
+
+def _action(args: argparse.Namespace) -> int:
+    with _client(args) as client, client.control():
+        if args.action == "pause":
+            progress = client.recipe_pause(now=args.now)
+        elif args.action == "resume":
+            progress = client.recipe_resume()
+        else:
+            progress = client.recipe_abort()
+    stdout_console().print(_line(progress.get("progress") or {}), markup=False)
+    return int(ExitCode.OK)
+
+
+def _status(args: argparse.Namespace) -> int:
+    with _client(args) as client:
+        result = client.recipe()
+    if args.json:
+        print_json(result)
+    else:
+        progress = result.get("progress")
+        stdout_console().print(_line(progress) if progress else "no recipe has run in this service", markup=False)
+    return int(ExitCode.OK)
+
+
+class _EmbeddedService:
+    """A ``millctl serve`` process started for this run, in its own session (Ctrl+C reaches only us)."""
+
+    def __init__(self, args: argparse.Namespace, socket_path: str) -> None:
+        command = [sys.executable, "-m", "millctl"]
+        if args.config:
+            command += ["--config", args.config]
+        command += ["serve", "--socket", socket_path]
+        log_dir = Path(socket_path).parent
+        log_dir.mkdir(parents=True, exist_ok=True)
+        self.log_path = log_dir / "embedded-service.log"
+        self._log = open(self.log_path, "ab")  # noqa: SIM115 - closed in stop()
+        self.proc = subprocess.Popen(
+            command, stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log, start_new_session=True
+        )
+
+    def wait_ready(self, client: Any) -> None:
+        deadline = time.monotonic() + SERVICE_START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise BusError(f"the embedded service exited with code {self.proc.returncode}; see {self.log_path}")
+            with contextlib.suppress(BusError):
+                client.status()
+                return
+            time.sleep(0.2)
+        raise BusError(
+            f"the embedded service did not start within {SERVICE_START_TIMEOUT_S:.0f} s; see {self.log_path}"
+        )
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=60.0)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._log.close()
+
+
+def _run(args: argparse.Namespace) -> int:
+    from millctl.cli.recipe_cmd import preflight
+    from millctl.client import Client, ServiceUnavailable
+
+    loaded, plan = preflight(args)  # every violation, before anything moves
+    client = Client(args.socket, config=args.config, name="recipe")
+    embedded: _EmbeddedService | None = None
+    err = stderr_console()
+    try:
+        try:
+            client.status()
+        except ServiceUnavailable:
+            assert client.socket_path is not None
+            err.print(f"no service on {client.socket_path}: starting the embedded service and simulated node")
+            embedded = _EmbeddedService(args, client.socket_path)
+            embedded.wait_ready(client)
+        client.take_control()
+        started = client.recipe_run(os.path.abspath(loaded.source))["progress"]
+        err.print(
+            f"run {started['run_id']}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
+            f"{plan.total_s:.0f} s planned) — Ctrl+C pauses, twice aborts"
+        )
+        if args.detach:
+            stdout_console().print(
+                f"run {started['run_id']} started; follow with `millctl recipe status`", markup=False
+            )
+            return int(ExitCode.OK)
+        final = _follow(client)
+    finally:
+        with contextlib.suppress(BusError, Exception):
+            client.release_control()
+        client.close()
+        if embedded is not None:
+            embedded.stop()
+    return _summary(args, final)
+
+
+def _follow(client: Any) -> dict[str, Any]:
+    """Show progress until the run ends; Ctrl+C once pauses now, twice aborts."""
+    from rich.live import Live
+
+    interrupts = 0
+    last_renew = time.monotonic()
+    progress: dict[str, Any] = {}
+    with Live(console=stderr_console(), refresh_per_second=4, transient=False) as live:
+        while True:
+            try:
+                progress = client.recipe()["progress"] or {}
+                status = client.status()
+                live.update(_panel(progress, status))
+                if progress.get("state") in ("DONE", "ABORTED", "FAILED"):
+                    return progress
+                if time.monotonic() - last_renew > LEASE_RENEW_S:
+                    client.take_control()
+                    last_renew = time.monotonic()
+                time.sleep(POLL_S)
+            except KeyboardInterrupt:
+                interrupts += 1
+                if interrupts == 1:
+                    client.recipe_pause(now=True)
+                    live.console.print("[yellow]paused[/] — `millctl recipe resume` continues; Ctrl+C again aborts")
+                else:
+                    client.recipe_abort()
+                    live.console.print("[red]aborting[/]: controlled stop")
+
+
+def _panel(progress: dict[str, Any], status: dict[str, Any]) -> Any:
+    from rich.table import Table
+
+    grid = Table.grid(padding=(0, 2))
+    grid.add_row("run", _line(progress))
+    limit = status.get("limit_rotary_rpm")
+    measured_r, measured_v = status.get("measured_rotary_rpm"), status.get("measured_vibration_rpm")
+    grid.add_row(
+        "speeds",
+        f"ω_r {status.get('setpoint_rotary_rpm', 0):.1f} rpm (measured {_num(measured_r)}), "
+        f"limit {_num(limit)} rpm; ω_v {status.get('setpoint_vibration_rpm', 0):.1f} rpm (measured {_num(measured_v)})",
+    )
+    grid.add_row(
+        "furnace", f"{_num(status.get('furnace_temp_c'))} °C (setpoint {_num(status.get('furnace_setpoint_c'))})"
+    )
+    grid.add_row("state", f"{status.get('state')} {status.get('trip_cause') or ''}")
+    return grid
+
+
+def _num(value: Any) -> str:
+    return "—" if value is None else f"{value:.1f}"
+
+
+def _line(progress: dict[str, Any]) -> str:
+    if not progress:
+        return "no run"
+    return (
+        f"{progress.get('state')} step {progress.get('step')}/{progress.get('steps')} ({progress.get('kind')}), "
+        f"elapsed {_hms(progress.get('elapsed_s', 0.0))}, remaining ≈ {_hms(progress.get('remaining_s', 0.0))}"
+        + (f" — {progress['reason']}" if progress.get("reason") else "")
+    )
+
+
+def _hms(seconds: float) -> str:
+    seconds = round(seconds)
+    return f"{seconds // 3600:d}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
+
+
+def _summary(args: argparse.Namespace, final: dict[str, Any]) -> int:
+    ok = final.get("state") == "DONE"
+    if args.json:
+        print_json(final)
+    else:
+        out = stdout_console()
+        out.print(f"recipe {final.get('recipe')!s}: {final.get('state')}", markup=False)
+        out.print(f"  run id   {final.get('run_id')}", markup=False)
+        out.print(f"  steps    {final.get('step')}/{final.get('steps')}", markup=False)
+        out.print(f"  elapsed  {_hms(final.get('elapsed_s', 0.0))}", markup=False)
+        if final.get("reason"):
+            out.print(f"  reason   {final.get('reason')}", markup=False)
+        out.print(f"  record   {final.get('record')}", markup=False)
+    return int(ExitCode.OK) if ok else int(ExitCode.INTERLOCK)
