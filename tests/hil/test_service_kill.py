@@ -22,6 +22,7 @@ from millctl.client import Client
 from millctl.config.loader import packaged_file
 from millctl.protocol import DriveTelemetry, FaultCode, NodeState, NodeStatus, ProtocolError, default_codec
 from millctl.records import read_records
+from tests.hil.conftest import _live_group_members
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -134,3 +135,5 @@ def test_sigkill_of_the_service_mid_run_the_node_stops_the_mill_and_records_surv
     assert any(r["kind"] == "state" and "RUNNING" in r["message"] for r in records)
     assert not any("service stopped" in m for m in messages)  # it was killed, not stopped
     assert spawn.stop(node) == 0, spawn.output(node)
+    # The node's own helpers (e.g. a physics worker process) may outlive it by a moment: let them exit.
+    wait_for(lambda: not _live_group_members(node.pid), transport.timeout(10.0), "the node's helpers to exit")
