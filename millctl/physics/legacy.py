@@ -105,11 +105,15 @@ def _separations(
         if q is None:
             sep = m.r0_m**2 - (x * x + (y - yc) ** 2)
         else:
+            # the nearest of the q points is one of the two that bracket the rod's angle (O(1) per step)
             tau = ts - f.t0_s
             base = math.atan2(f.y0_m, f.x0_m) + scene.omega_r_rad_s * tau
-            angles = base[:, None] + 2.0 * math.pi * np.arange(q)[None, :] / q
-            ax, ay = m.vial_radius_m * np.cos(angles), yc[:, None] + m.vial_radius_m * np.sin(angles)
-            d2 = np.min((x[:, None] - ax) ** 2 + (y[:, None] - ay) ** 2, axis=1)
+            spacing = 2.0 * math.pi / q
+            lower = base + spacing * np.floor((np.arctan2(y - yc, x) - base) / spacing)
+            d2 = np.full_like(ts, np.inf)
+            for angle in (lower, lower + spacing):
+                ax, ay = m.vial_radius_m * np.cos(angle), yc + m.vial_radius_m * np.sin(angle)
+                d2 = np.minimum(d2, (x - ax) ** 2 + (y - ay) ** 2)
             sep = d2 - m.rod_radius_m**2
         out[(i, -1)] = np.where(flying, sep, np.inf)
         for j in range(len(flights)):

@@ -8,6 +8,8 @@ import math
 import mpmath
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from millctl.config import ModelVariant
 from millctl.physics.detachment import find_detachment
@@ -119,3 +121,30 @@ def test_pinned_at_standstill_and_starting_unsupported(set_a_corrected):
     assert not find_detachment(Scene(set_a_corrected, 0.0, 0.0, -0.5 * math.pi)).detached
     top = find_detachment(Scene(set_a_corrected, 5.0, 0.0, 0.5 * math.pi))
     assert top.detached and top.at_start and top.time_s == 0.0
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(
+    omega_r=st.floats(2.0, 40.0),
+    omega_v=st.floats(0.0, 130.0),
+    theta0=st.floats(-math.pi, math.pi),
+    alpha0=st.floats(0.0, 2 * math.pi),
+    corrected=st.booleans(),
+)
+def test_detachment_is_a_falling_zero_with_n_positive_before(set_a, omega_r, omega_v, theta0, alpha0, corrected):
+    model = dataclasses.replace(set_a, variant=ModelVariant.CORRECTED if corrected else ModelVariant.PAPER)
+    scene = Scene(model, omega_r, omega_v, theta0, alpha0)
+    f = normal_force_per_mass(scene, theta0)
+    det = find_detachment(scene)
+    if not det.detached:
+        grid = np.linspace(0.0, det.horizon_s, 20_001)
+        assert float(np.min(f.on_grid(grid))) > 0.0
+        return
+    if det.at_start:
+        assert f(0.0) <= 0.0
+        return
+    scale = f.constant + f.bound(1) / max(omega_r, 1.0)
+    assert abs(f(det.time_s)) <= 1e-12 * scale
+    assert f(det.time_s, 1) <= 1e-9 * f.bound(1)
+    before = np.linspace(0.0, det.time_s, 4_001)[:-1]
+    assert float(np.min(f.on_grid(before))) > 0.0
