@@ -142,3 +142,17 @@ def test_tx_corrupt_makes_every_protected_frame_fail_its_crc(fi_bench: Bench) ->
     protected = [d for d in bench.received if d.kind in (NodeStatus, DriveTelemetry)]
     assert protected and not any(d.crc_ok for d in protected)
     assert bench.node.state is NodeState.RUNNING
+
+
+def test_safety_6_measured_pair_outside_for_debounce_samples_trips_envelope(fi_bench: Bench) -> None:
+    bench = fi_bench
+    ticks: list[tuple[bool, NodeState]] = []
+    bench.on_tick.append(
+        lambda b: ticks.append((not b.envelope.check_measured(*b.node.measured_speeds_rpm).ok, b.node.state))
+    )
+    bench.inject(SimFaultCode.ROTARY_RUNAWAY, 300.0)
+    bench.step(5.0)
+    trip = next(i for i, (_, state) in enumerate(ticks) if state is NodeState.FAULT)
+    debounce = bench.config.interlock.debounce_samples
+    assert [outside for outside, _ in ticks[trip - debounce : trip + 1]] == [False] + [True] * debounce
+    assert bench.node.first_fault is FaultCode.ENVELOPE

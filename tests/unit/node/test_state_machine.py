@@ -242,3 +242,23 @@ def test_safety_10_estop_from_any_sender_with_any_content(bench: Bench) -> None:
     assert node.true_speeds_rpm[0] < rotary_rpm - 0.6 * bench.config.drives.rotary.max_accel_rpm_s
     bench.step(7.0)
     assert node.true_speeds_rpm == (0.0, 0.0)
+
+
+def test_safety_10_estop_is_handled_before_other_frames_of_the_same_tick(bench: Bench) -> None:
+    bench.arm()
+    bench.setpoints(5.0, 20.0)
+    bench.ctl_bus.send(can.Message(arbitration_id=0x000, data=bytes(8), is_extended_id=False))
+    bench.step(bench.tick_s)
+    assert bench.node.first_fault is FaultCode.ESTOP
+    assert bench.node.last_setpoint is None
+    assert bench.node.last_refusal is RefusalCode.FAULT_LATCHED
+
+
+def test_safety_2_heartbeats_with_some_lost_still_feed_the_watchdog(bench: Bench) -> None:
+    bench.arm()
+    for _ in range(30):  # every other heartbeat lost: the counter advances by 2 (OK_SOME_LOST)
+        bench.counters[Heartbeat].next()
+        bench.heartbeat()
+        bench.step(0.1, heartbeat=False)
+    assert bench.node.state is NodeState.ARMED
+    assert bench.node.fault_bits == 0
