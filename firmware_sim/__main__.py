@@ -93,18 +93,25 @@ def _shutdown(node: Node, tick_s: float) -> None:
     )
 
 
+def _bus_config(configured: Bus, interface: str | None, channel: str | None) -> Bus:
+    """The config's bus with the command line's overrides; another interface drops the config's options."""
+    if not interface and not channel:
+        return configured
+    values = configured.model_dump()
+    if interface and interface != configured.interface:
+        values.update(interface=interface, options={})
+    if channel:
+        values["channel"] = channel
+    return Bus.model_validate(values)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit code."""
     args = _parser().parse_args(argv)
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
         config = load_config(args.config).config
-        bus_config = config.bus
-        if args.interface or args.channel:
-            bus_config = Bus.model_validate(
-                bus_config.model_dump()
-                | {k: v for k, v in (("interface", args.interface), ("channel", args.channel)) if v}
-            )
+        bus_config = _bus_config(config.bus, args.interface, args.channel)
         bus = open_bus(bus_config)
     except MillctlError as exc:
         log.error("%s", exc)
