@@ -241,9 +241,6 @@ def earliest_contact(
                 seen.add(key)
                 pairs.append((i, j))
     funcs = [_pair_functions(scene, states, i, j, t_start_s, n_d.get(i, 0.0)) for i, j in pairs]
-    for (i, j), (sign_sep, _, _) in zip(pairs, funcs, strict=True):
-        if sign_sep(t_start_s) <= 0.0:
-            return contact_kinematics(scene, states, i, j, t_start_s)
     h = scan_step_s(scene)
     accel = 2.0 * _accel_bound(scene)
     r0 = scene.model.r0_m
@@ -252,11 +249,9 @@ def earliest_contact(
     wall = jj == WALL
     jj_safe = np.where(wall, ii, jj)
     c2 = scene.model.contact_distance_m**2
-    t_prev = t_start_s
-    s_prev = np.array([f[1](t_start_s) for f in funcs])
-    ds_prev = np.array([f[2](t_start_s) for f in funcs])
-    while t_prev < t_end_s:
-        ts = np.minimum(t_prev + h * np.arange(1, _SCAN_SAMPLES + 1), t_end_s)
+
+    def pair_arrays(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Separation, its derivative and the relative velocity squared of every pair at times ts."""
         arrays = [states[k].rel_array(scene, ts) for k in range(len(states))]
         x, y, vx, vy = (np.stack([a[q] for a in arrays]) for q in range(4))
         dx = np.where(wall[:, None], x[ii], x[ii] - x[jj_safe])
@@ -265,8 +260,19 @@ def earliest_contact(
         dvy = np.where(wall[:, None], vy[ii], vy[ii] - vy[jj_safe])
         d2 = dx * dx + dy * dy
         sep = np.where(wall[:, None], r0 * r0 - d2, d2 - c2)
-        dsep = np.where(wall[:, None], -2.0, 2.0) * (dx * dvx + dy * dvy)
-        v2 = np.max(dvx * dvx + dvy * dvy, axis=1)
+        return sep, np.where(wall[:, None], -2.0, 2.0) * (dx * dvx + dy * dvy), dvx * dvx + dvy * dvy
+
+    s0, ds0, _ = pair_arrays(np.array([t_start_s]))
+    s_prev, ds_prev = s0[:, 0], ds0[:, 0]
+    for idx, (i, j) in enumerate(pairs):
+        value = funcs[idx][0](t_start_s) if funcs[idx][0] is not funcs[idx][1] else s_prev[idx]
+        if value <= 0.0:
+            return contact_kinematics(scene, states, i, j, t_start_s)
+    t_prev = t_start_s
+    while t_prev < t_end_s:
+        ts = np.minimum(t_prev + h * np.arange(1, _SCAN_SAMPLES + 1), t_end_s)
+        sep, dsep, rel_v2 = pair_arrays(ts)
+        v2 = np.max(rel_v2, axis=1)
         curvature = 2.0 * ((np.sqrt(v2) + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel)
         margin = (curvature * h * h / 8.0)[:, None]
         s_before = np.concatenate((s_prev[:, None], sep[:, :-1]), axis=1)
