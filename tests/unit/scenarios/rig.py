@@ -49,6 +49,7 @@ class Rig:
         self.node_alive = True
 
     def close(self) -> None:
+        self.node.close()
         for bus in self._buses:
             bus.shutdown()
 
