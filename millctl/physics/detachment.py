@@ -26,8 +26,13 @@ from millctl.physics.kinematics import TrigSum, normal_force_per_mass
 from millctl.physics.model import Scene
 
 _MAX_DEPTH = 80
-_XTOL_S = 1e-300
 _RTOL = 4.0 * 2.220446049250313e-16
+_MAXITER = 200
+
+
+def _xtol(a: float, b: float) -> float:
+    """Absolute time tolerance of a few ulps of the bracket (a root at t = 0 has no relative scale)."""
+    return max(_RTOL * max(abs(a), abs(b)), 1e-300)
 
 
 @dataclass(frozen=True)
@@ -83,12 +88,12 @@ def _monotone_pieces_root(f: TrigSum, a: float, b: float) -> float | None:
     ends = [a, b]
     d1a, d1b = f(a, 1), f(b, 1)
     if d1a < 0.0 < d1b or d1a > 0.0 > d1b:  # a minimum of f inside: this is where grazing is decided
-        t_c = brentq(lambda t: f(t, 1), a, b, xtol=_XTOL_S, rtol=_RTOL)
+        t_c = brentq(lambda t: f(t, 1), a, b, xtol=_xtol(a, b), rtol=_RTOL, maxiter=_MAXITER)
         ends = [a, t_c, b]
     for s, e in itertools.pairwise(ends):
         fs, fe = f(s), f(e)
         if fs > 0.0 and fe < 0.0:
-            return float(brentq(f, s, e, xtol=_XTOL_S, rtol=_RTOL))
+            return float(brentq(f, s, e, xtol=_xtol(s, e), rtol=_RTOL, maxiter=_MAXITER))
         if fs > 0.0 and fe == 0.0 and f(e, 1) < 0.0:
             return e
     return None

@@ -22,13 +22,12 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import brentq
 
-from millctl.physics.flight import FlightState, RodState, departure_wall_gap
+from millctl.physics.flight import FlightState, RodState, WallState, departure_wall_gap
 from millctl.physics.model import Scene
 
 WALL = -1
 """Partner index of the vial wall."""
 
-_XTOL_S = 1e-300
 _RTOL = 4.0 * 2.220446049250313e-16
 _SCAN_SAMPLES = 32
 
@@ -128,7 +127,8 @@ def _root(f: Callable[[float], float], a: float, b: float, tol_s: float = 0.0) -
     fb = f(b)
     if fb == 0.0:
         return b
-    return float(brentq(f, a, b, xtol=max(tol_s, _XTOL_S), rtol=_RTOL))
+    xtol = max(tol_s, _RTOL * max(abs(a), abs(b)), 1e-300)  # a root at t = 0 has no relative scale
+    return float(brentq(f, a, b, xtol=xtol, rtol=_RTOL, maxiter=200))
 
 
 def first_contact_time(
@@ -252,8 +252,7 @@ def earliest_contact(
 
     def pair_arrays(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Separation, its derivative and the relative velocity squared of every pair at times ts."""
-        arrays = [states[k].rel_array(scene, ts) for k in range(len(states))]
-        x, y, vx, vy = (np.stack([a[q] for a in arrays]) for q in range(4))
+        x, y, vx, vy = _all_positions(scene, states, ts)
         dx = np.where(wall[:, None], x[ii], x[ii] - x[jj_safe])
         dy = np.where(wall[:, None], y[ii], y[ii] - y[jj_safe])
         dvx = np.where(wall[:, None], vx[ii], vx[ii] - vx[jj_safe])
@@ -295,6 +294,23 @@ def earliest_contact(
             return contact_kinematics(scene, states, i, j, best[0])
         t_prev, s_prev, ds_prev = float(ts[-1]), sep[:, -1], dsep[:, -1]
     return None
+
+
+def _all_positions(scene: Scene, states: list[RodState], ts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(x, y, vx, vy) of every rod at times ts, shape (rods, times); pinned rods in one vectorised pass."""
+    x, y, vx, vy = (np.empty((len(states), len(ts))) for _ in range(4))
+    pinned = [k for k, st in enumerate(states) if isinstance(st, WallState)]
+    if pinned:
+        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        t0 = np.array([states[k].t0_s for k in pinned])
+        th0 = np.array([states[k].theta0_rad for k in pinned])  # type: ignore[union-attr]
+        theta = th0[:, None] + w * (ts[None, :] - t0[:, None])
+        c, sn = np.cos(theta), np.sin(theta)
+        x[pinned], y[pinned], vx[pinned], vy[pinned] = r0 * c, r0 * sn, -r0 * w * sn, r0 * w * c
+    for k, st in enumerate(states):
+        if isinstance(st, FlightState):
+            x[k], y[k], vx[k], vy[k] = st.rel_array(scene, ts)
+    return x, y, vx, vy
 
 
 def _pair_functions(

@@ -21,10 +21,10 @@ too). From the K samples:
 * ``mean_shear_pa``: eq. 25, μ·p_av, averaged over the pinned arc (corrected,
   N = m(r0 ω_r² − g sin θ) ≥ 0 at 16 angles) or at the paper's N_c = m ω_r² r0.
 
-Cost (Set A, 100–200 rpm / 800 rpm, CPython, shared 2-core box): 0.4–0.8 ms per
-cam phase, 1.5–3 ms per call with K = 4; ≈ 10 µs when no phase can detach (the
-start-angle test proves it); 2–10 ms at a few rpm, where the rod rides through
-many cam cycles before its first chance. The node calls it at ~2 Hz or once per
+Cost (Set A, CPython, shared and loaded 2-core box): 0.4–1 ms per cam phase,
+1.5–5 ms per call with K = 4; ≈ 0.1 ms when no phase can detach (the start-angle
+test proves it); up to 15–50 ms at a few rpm, where the rod rides through many
+cam cycles before its first chance. The node calls it at ~2 Hz or once per
 revolution, not every 10 ms tick, or through :class:`SummaryCache` (1 rpm grid,
 microseconds on a hit). Below ``MIN_OMEGA_R_RAD_S`` (1 rpm) the vial is treated
 as standing still: rods pinned, no impacts, no shear.

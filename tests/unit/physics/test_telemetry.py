@@ -110,3 +110,9 @@ def test_start_angle_shortcut_matches_the_bottom_start(set_a_corrected):
     t_s = (start + 0.5 * math.pi) / w_r  # when the bottom-started rod reaches the start angle
     later = Scene(set_a_corrected, w_r, w_v, start, 0.3 + w_v * t_s)
     assert find_detachment(later).theta_rad == pytest.approx(det.theta_rad, abs=1e-9)
+
+
+def test_critical_point_at_t0_does_not_stall_the_root_finder(set_a_paper):
+    """Regression: paper, 30/1000 rpm put a root of N' at t = 0, where a purely relative tolerance never converges."""
+    s = revolution_summary(set_a_paper, rpm_to_rad_s(30.0), rpm_to_rad_s(1000.0))
+    assert isinstance(s, RevolutionSummary)
