@@ -28,17 +28,28 @@ CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
 
 
 @pytest.fixture(scope="module")
-def api_schema(tmp_path_factory: pytest.TempPathFactory) -> Iterator[object]:
+def runtime(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceRuntime]:
     directory: Path = tmp_path_factory.mktemp("schema")
-    runtime = ServiceRuntime(load_config(write_config(directory)))
-    runtime.start()
+    running = ServiceRuntime(load_config(write_config(directory)))
+    running.start()
     try:
         deadline = time.monotonic() + 10.0
-        while runtime.status()["state"] != "DISABLED" and time.monotonic() < deadline:
+        while running.status()["state"] != "DISABLED" and time.monotonic() < deadline:
             time.sleep(0.05)
-        yield schemathesis.openapi.from_asgi("/openapi.json", create_app(runtime))
+        yield running
     finally:
-        runtime.shutdown("test over", bound_s=2.0)
+        running.shutdown("test over", bound_s=2.0)
+
+
+@pytest.fixture(scope="module")
+def api_schema(runtime: ServiceRuntime) -> object:
+    return schemathesis.openapi.from_asgi("/openapi.json", create_app(runtime))
+
+
+@pytest.fixture(scope="module")
+def lease_id(runtime: ServiceRuntime) -> str:
+    """The fuzzer holds control, so that commands reach the controller (and its interlock)."""
+    return runtime.leases.take("api:fuzz")[0].lease_id
 
 
 schema = schemathesis.pytest.from_fixture("api_schema").exclude(path="/v1/stream")
@@ -46,8 +57,11 @@ schema = schemathesis.pytest.from_fixture("api_schema").exclude(path="/v1/stream
 
 @schema.parametrize()
 @settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
-def test_every_response_is_documented_and_none_is_a_server_error(case: schemathesis.Case) -> None:
-    case.call_and_validate(checks=CHECKS)
+def test_every_response_is_documented_and_none_is_a_server_error(case: schemathesis.Case, lease_id: str) -> None:
+    # A valid lease, so that commands get past the lease check to the controller and its interlock
+    # (but never to release: the fuzzer keeps control for the whole run).
+    headers = {} if case.path == "/v1/control/release" else {"X-Millctl-Lease": lease_id}
+    case.call_and_validate(checks=CHECKS, headers=headers)
 
 
 def test_every_route_is_versioned_and_documents_its_errors(tmp_path: Path) -> None:
