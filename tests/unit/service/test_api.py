@@ -18,6 +18,16 @@ from millctl.errors import ExitCode, InterlockError
 from millctl.records import read_records
 from tests.unit.service.conftest import Service, wait_for
 
+SYSTEM_PYTHON = "/usr/bin/python3"
+PROBE = (
+    "import socket,sys\n"
+    "s=socket.socket(socket.AF_UNIX)\n"
+    "try:\n s.connect(sys.argv[1]); s.sendall(b'GET /v1/status HTTP/1.0\\r\\n\\r\\n')\n"
+    " print('answered', s.recv(64))\n"
+    "except PermissionError as e: print('refused', e)\n"
+)
+"""A raw client (no millctl needed, so another user can run it from the system Python)."""
+
 
 def test_status_and_service_show_the_config_law_and_margin(service: Service) -> None:
     with service.client() as client:
@@ -134,16 +144,6 @@ def test_stream_sends_status_and_events(service: Service) -> None:
         assert after["last_seq"] >= len(after["events"]) > 0
 
 
-PROBE = (
-    "import socket,sys\n"
-    "s=socket.socket(socket.AF_UNIX)\n"
-    "try:\n s.connect(sys.argv[1]); s.sendall(b'GET /v1/status HTTP/1.0\\r\\n\\r\\n')\n"
-    " print('answered', s.recv(64))\n"
-    "except PermissionError as e: print('refused', e)\n"
-)
-"""A raw client (no millctl needed, so another user can run it from the system Python)."""
-
-
 def _probe(socket_path: Path, *prefix: str) -> str:
     command = [*prefix, SYSTEM_PYTHON, "-c", PROBE, str(socket_path)]
     return subprocess.run(command, capture_output=True, text=True, timeout=30, check=False).stdout
@@ -187,7 +187,6 @@ def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
         client.disarm()
 
 
-SYSTEM_PYTHON = "/usr/bin/python3"
 DEMO = Path(__file__).resolve().parents[3] / "config" / "recipes" / "demo.toml"
 
 
