@@ -147,10 +147,15 @@ class RampPlanner:
         grid = np.linspace(omega_v0_rpm, omega_v1_rpm, INTERIOR_GRID)
         return float(np.min(self.envelope.omega_r_limit_rpm(grid)))
 
-    def check_target(self, target: SpeedPoint) -> Verdict:
-        """The envelope's verdict on a target as the node will see it (snapped)."""
-        snapped = self.snap(target)
-        return self.envelope.check(snapped.omega_r_rpm, snapped.omega_v_rpm)
+    def _rates(self, rotary_rpm_s: float | None, vibration_rpm_s: float | None) -> tuple[float, float]:
+        """Ramp rates (rpm/s): the drives' maxima by default; refused when beyond them."""
+        env = self.envelope
+        rate_r = env.rotary_max_accel_rpm_s if rotary_rpm_s is None else rotary_rpm_s
+        rate_v = env.vibration_max_accel_rpm_s if vibration_rpm_s is None else vibration_rpm_s
+        verdict = env.check_rates(rate_r, rate_v)
+        if not verdict.ok:
+            raise InterlockRefused(verdict, "ramp")
+        return rate_r, rate_v
 
     def plan(
         self,
@@ -163,11 +168,7 @@ class RampPlanner:
     ) -> Trajectory:
         """Plan a move; refuse (InterlockRefused) a target or rate outside the envelope."""
         env = self.envelope
-        rate_r = env.rotary_max_accel_rpm_s if rotary_rate_rpm_s is None else rotary_rate_rpm_s
-        rate_v = env.vibration_max_accel_rpm_s if vibration_rate_rpm_s is None else vibration_rate_rpm_s
-        rates = env.check_rates(rate_r, rate_v)
-        if not rates.ok:
-            raise InterlockRefused(rates, "ramp")
+        rate_r, rate_v = self._rates(rotary_rate_rpm_s, vibration_rate_rpm_s)
         a, b = self.snap(start), self.snap(target)
         verdict = env.check(b.omega_r_rpm, b.omega_v_rpm)
         if not verdict.ok:
@@ -204,11 +205,7 @@ class RampPlanner:
         ends may be inside (the limit curve is not straight).
         """
         env = self.envelope
-        rate_r = env.rotary_max_accel_rpm_s if rotary_rate_rpm_s is None else rotary_rate_rpm_s
-        rate_v = env.vibration_max_accel_rpm_s if vibration_rate_rpm_s is None else vibration_rate_rpm_s
-        rates = env.check_rates(rate_r, rate_v)
-        if not rates.ok:
-            raise InterlockRefused(rates, "ramp")
+        rate_r, rate_v = self._rates(rotary_rate_rpm_s, vibration_rate_rpm_s)
         a, b = self.snap(start), self.snap(target)
         duration = max(abs(b.omega_r_rpm - a.omega_r_rpm) / rate_r, abs(b.omega_v_rpm - a.omega_v_rpm) / rate_v)
         move = Trajectory(a, b, (Segment(0.0, duration, a, b),) if a != b else ())
