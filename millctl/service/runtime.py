@@ -38,6 +38,9 @@ S = ControllerState
 BUS_LOG_NAME = "bus.log"
 """The candump bus log, in ``<records_dir>/bus/``."""
 
+EMBEDDED_NODE_WAIT_S = 10.0
+"""With the embedded node, the API opens once the controller has seen it (or after this long, s)."""
+
 STOP_BOUND_S = (5.0, 30.0)
 """A shutdown waits for standstill the expected ramp-down time plus 2 s, kept within these bounds (s)."""
 
@@ -102,6 +105,10 @@ class ServiceRuntime:
             embedded_node=self.node is not None,
         )
         self._thread.start()
+
+    def wait_for_node(self, timeout_s: float) -> bool:
+        """Wait until the controller has seen the node (left DISCONNECTED); False after ``timeout_s``."""
+        return self._wait(lambda: self.controller.state is not S.DISCONNECTED or not self.running, timeout_s)
 
     def _loop(self) -> None:
         period_s = self.config.timing.controller_tick_s
@@ -225,4 +232,4 @@ class ServiceRuntime:
             self.journal.close()
 
 
-__all__ = ["BUS_LOG_NAME", "STOP_BOUND_S", "NodeUnreachable", "ServiceRuntime"]
+__all__ = ["BUS_LOG_NAME", "EMBEDDED_NODE_WAIT_S", "STOP_BOUND_S", "NodeUnreachable", "ServiceRuntime"]

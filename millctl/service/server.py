@@ -32,7 +32,7 @@ from millctl.config.loader import LoadedConfig
 from millctl.errors import BusError, ConfigError, ExitCode
 from millctl.service.app import create_app
 from millctl.service.auth import TokenGuard, read_token
-from millctl.service.runtime import ServiceRuntime
+from millctl.service.runtime import EMBEDDED_NODE_WAIT_S, ServiceRuntime
 
 log = logging.getLogger(__name__)
 
@@ -185,6 +185,8 @@ def _run(
 
     previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
     runtime.start()
+    if runtime.node is not None and not runtime.wait_for_node(EMBEDDED_NODE_WAIT_S):
+        log.warning("the embedded node was not seen within %.0f s; serving anyway", EMBEDDED_NODE_WAIT_S)
     log.info("listening on %s (pid %d)", path, os.getpid())
     if on_ready is not None:
         on_ready(path)
