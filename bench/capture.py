@@ -1,0 +1,153 @@
+"""Bus load from a capture: a running service + node on udp_multicast, counted by a listener over a fixed window.
+
+Run only inside the hil tier's private network namespace (multicast must not
+leave the machine)::
+
+    tests/hil/in_netns .venv/bin/python -m bench.capture --seconds 10 --json FILE
+
+It writes a config (the packaged Set A with a udp_multicast ``[bus]``), starts
+``python -m firmware_sim`` and ``millctl serve`` as separate processes, arms
+and runs the mill at 150/800 rpm through the service API (so every periodic
+frame flows), then counts every frame a third bus node receives during the
+window. Each frame is charged the same worst-case length as
+:mod:`millctl.protocol.busload` uses, so measured and computed loads differ
+only by the frame rates actually seen on the bus.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from millctl.client import Client
+from millctl.config import load_config
+from millctl.config.loader import packaged_file
+from millctl.protocol import default_codec
+from millctl.protocol.busload import worst_case_frame_bits
+from millctl.protocol.factory import open_bus
+from millctl.protocol.messages import MESSAGE_TYPES
+
+MULTICAST_GROUP = "239.74.163.9"
+RUN_RPM = (150.0, 800.0)
+
+
+def _only_loopback() -> bool:
+    return [name for _, name in socket.if_nameindex()] == ["lo"]
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def write_config(directory: Path) -> Path:
+    """Set A with a private udp_multicast bus and a service socket in ``directory``."""
+    head = packaged_file("mill.toml").read_text(encoding="utf-8").partition("[bus]")[0]
+    port = _free_udp_port()
+    body = (
+        f'[bus]\ninterface = "udp_multicast"\nchannel = "{MULTICAST_GROUP}"\n'
+        f"options = {{ port = {port}, hop_limit = 0 }}\n\n"
+        f'[service]\nsocket_path = "{directory / "mill.sock"}"\nrecords_dir = "{directory / "records"}"\n'
+    )
+    path = directory / "mill.toml"
+    path.write_text(head + body, encoding="utf-8")
+    return path
+
+
+def _wait(cond: Any, timeout_s: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            if result := cond():
+                return result
+        except Exception:  # the service is still starting
+            pass
+        time.sleep(0.05)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def capture(window_s: float) -> dict[str, Any]:
+    """Start node and service, run the mill, count frames for ``window_s``; return rates and loads."""
+    codec = default_codec()
+    names = {codec.frame_id(kind): kind.__name__ for kind in MESSAGE_TYPES}
+    with tempfile.TemporaryDirectory(prefix="bench-capture-") as tmp:
+        directory = Path(tmp)
+        cfg_path = write_config(directory)
+        config = load_config(cfg_path).config
+        py = sys.executable
+        procs = [
+            subprocess.Popen([py, "-m", "firmware_sim", "--config", str(cfg_path)], stderr=subprocess.DEVNULL),
+            subprocess.Popen(
+                [py, "-m", "millctl", "--config", str(cfg_path), "serve", "--socket", str(directory / "mill.sock")],
+                stderr=subprocess.DEVNULL,
+            ),
+        ]
+        bus = open_bus(config.bus)
+        client = Client(directory / "mill.sock", name="bench")
+        try:
+            _wait(lambda: client.status()["state"] == "DISABLED", 30.0, "the controller to see the node")
+            client.take_control()
+            client.arm()
+            _wait(lambda: client.status()["state"] == "ARMED", 10.0, "ARMED")
+            client.set_speeds(*RUN_RPM)
+            _wait(lambda: abs(client.status()["measured_rotary_rpm"] - RUN_RPM[0]) < 2.0, 60.0, "the run speed")
+            state = client.status()["state"]
+            counts: Counter[int] = Counter()
+            bits: Counter[int] = Counter()
+            while bus.recv(0.0) is not None:  # drain what queued before the window
+                pass
+            start = time.monotonic()
+            while (now := time.monotonic()) < start + window_s:
+                frame = bus.recv(start + window_s - now)
+                if frame is not None:
+                    counts[frame.arbitration_id] += 1
+                    bits[frame.arbitration_id] += worst_case_frame_bits(len(frame.data), frame.is_extended_id)
+            elapsed = time.monotonic() - start
+        finally:
+            client.close()
+            bus.shutdown()
+            for proc in procs:
+                proc.kill()
+                proc.wait()
+    bitrate = config.bus.bitrate_bit_s
+    frames = [
+        {"name": names.get(fid, hex(fid)), "id": f"0x{fid:03X}", "frames": n, "rate_hz": n / elapsed}
+        for fid, n in sorted(counts.items())
+    ]
+    return {
+        "transport": "udp_multicast",
+        "window_s": elapsed,
+        "controller_state": state,
+        "run_rpm": list(RUN_RPM),
+        "bitrate_bit_s": bitrate,
+        "frames": frames,
+        "measured_load": sum(bits.values()) / elapsed / bitrate,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line (see module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m bench.capture", description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=10.0, help="capture window (s)")
+    parser.add_argument("--json", metavar="FILE", required=True, help="write the result here")
+    args = parser.parse_args(argv)
+    if not _only_loopback():
+        print("error: run inside tests/hil/in_netns (udp_multicast must stay on this host)", file=sys.stderr)
+        return 1
+    Path(args.json).write_text(json.dumps(capture(args.seconds), indent=1), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,107 @@
+"""Smoke test of the benchmark pieces on tiny inputs: the structure of the results, never a timing."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from bench import cli, levels, node_budget, report, work_precision
+from bench.common import corrected_model
+from bench.scenes import hard_scenes, lhs_scenes
+from millctl.physics.methods import ImpactEvent
+
+VERDICTS = {"matched", "missed", "spurious", "none"}
+
+
+def _event(t: float, rod: int = 0, partner: int = -1) -> ImpactEvent:
+    return ImpactEvent(t, rod, partner, 0.0, 0.3, 0.1, 0.2, 1e-4, "test")
+
+
+def test_scene_set_is_seeded_and_has_the_hard_cases() -> None:
+    model = corrected_model()
+    a, b = lhs_scenes(model, 5), lhs_scenes(model, 5)
+    assert [s.scene for s in a] == [s.scene for s in b]
+    assert a[0].scene.model.eccentricity_m == 0.0  # every 4th has r_d = 0 (closed-form reference)
+    names = {s.name for s in hard_scenes(model)}
+    assert {"near-limit", "gamma-1.5", "packing-limit", "slow-long-flight"} <= names
+
+
+def test_classify_counts_early_events_as_spurious_and_late_ones_as_missed() -> None:
+    ref = _event(1.0)
+    assert work_precision.classify(_event(1.0 + 1e-6), ref, flight_s=0.1, slack_s=0.0) == "matched"
+    assert work_precision.classify(_event(0.5), ref, flight_s=0.1, slack_s=0.0) == "spurious"
+    assert work_precision.classify(_event(1.5), ref, flight_s=0.1, slack_s=0.0) == "missed"
+    assert work_precision.classify(None, ref, flight_s=0.1, slack_s=0.0) == "missed"
+    assert work_precision.classify(_event(1.0, 1, 0), _event(1.0, 0, 1), 0.1, 0.0) == "matched"  # unordered pair
+    assert work_precision.classify(_event(0.2), None, math.nan, 0.0) == "spurious"
+
+
+def test_pareto_interpolation() -> None:
+    front = work_precision.pareto([(1.0, 1e-3), (2.0, 1e-6), (3.0, 1e-5), (4.0, 1e-9)])
+    assert front == [(1.0, 1e-3), (2.0, 1e-6), (4.0, 1e-9)]
+    assert work_precision.cost_at_error(front, 1e-2) == 1.0  # looser than the cheapest point
+    assert math.isnan(work_precision.cost_at_error(front, 1e-12))  # out of reach
+    assert 1.0 < work_precision.cost_at_error(front, 1e-4) < 2.0
+
+
+def test_work_precision_on_two_scenes(monkeypatch: pytest.MonkeyPatch) -> None:
+    settings = [
+        work_precision.Setting("exact", "tol=4ulp", {"tol": 0.0}),
+        work_precision.Setting("legacy", "dt=0.001", {"dt": 1e-3}),
+        work_precision.Setting("ivp", "rtol=1e-06", {"tol": 1e-6}),
+    ]
+    monkeypatch.setattr(work_precision, "sweeps", lambda quick: settings)
+    model = corrected_model()
+    scenes = lhs_scenes(model, 1) + [s for s in hard_scenes(model) if s.name == "gamma-1.5"]
+    res = work_precision.run(scenes, quick=True)
+    assert {r["verdict"] for r in res["rows"]} <= VERDICTS
+    assert len(res["rows"]) == len(scenes) * len(settings)
+    assert [s["method"] for s in res["summary"]] == ["exact", "legacy", "ivp"]
+    for s in res["summary"]:
+        assert s["matched"] + s["missed"] + s["spurious"] <= s["scenes"]
+        assert s["seconds_per_event"] > 0.0
+    assert set(res["headline"]) == {"time_s", "point_m", "energy_rel"}
+    text = report.render(
+        {"command": "test", "quick": True, "duration_s": 1.0, "machine": _machine()}
+        | {"work_precision": json.loads(json.dumps(res, default=str))}
+    )
+    assert "## 1. Work–precision" in text and "| exact | tol=4ulp |" in text
+
+
+def _machine() -> dict[str, object]:
+    from bench.common import machine
+
+    return machine()
+
+
+def test_levels_and_node_budget_structure() -> None:
+    lv = {
+        "interlock": levels.interlock(1000, 1),
+        "telemetry": levels.telemetry(1, 1),
+        "offline": levels.offline(0.05, 1),
+    }
+    assert lv["interlock"]["scalar_and_vector_agree"]
+    assert lv["interlock"]["speedup_vector_vs_scalar"] > 0.0
+    base = lv["interlock"]["scalar_s_per_point"]
+    lv["vs_scalar_interlock"] = {
+        "interlock_vector_per_point": 1.0,
+        "telemetry_summary": lv["telemetry"]["median_s"] / base,
+        "telemetry_cache_hit": 1.0,
+        "offline_per_event": 1.0,
+    }
+    run = node_budget._stepped_run("inline", 0.1)
+    assert run["ticks"] > 0 and run["realtime_factor"] > 0.0 and run["controller_state"] == "RUNNING"
+    nb = {"target_rpm": [150.0, 800.0], "hold_s": 0.1, "thread": run, "inline": run}
+    nb |= {"inline_over_thread_tick_mean": 1.0, "inline_over_thread_tick_max": 1.0}
+    res = {"command": "t", "quick": True, "duration_s": 1.0, "machine": _machine(), "levels": lv, "node_budget": nb}
+    text = report.render(res)
+    assert "## 2. Levels of detail" in text and "### Node tick budget" in text
+
+
+def test_cli_renders_a_saved_results_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine()}))
+    assert cli.main(["--from-json", str(path)]) == 0
+    assert capsys.readouterr().out.startswith("# Benchmarks")
