@@ -16,8 +16,8 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+TOP_IDS = 15  # how many CAN IDs the summary lists
 # "(1732212345.123456) vcan0 123#0102" or "... 1ABCDEF0#..." (extended) or "123#R" (remote)
-TOP_IDS = 15
 _LINE = re.compile(r"^\((?P<t>\d+\.\d+)\)\s+(?P<channel>\S+)\s+(?P<id>[0-9A-Fa-f]+)#(?P<data>\S*)$")
 
 
