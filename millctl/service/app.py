@@ -70,14 +70,14 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     def source(name: str | None) -> str:
         return f"api:{name or 'anonymous'}"
 
-    def command(lease: str | None, name: str | None, what: str, action: Any, *, idle: bool = True) -> CommandOut:
-        """Check the lease, then run ``action(controller, source)`` under the lock."""
-        rt.leases.check(lease)
+    def command(lease: str | None, what: str, action: Any, *, idle: bool = True) -> CommandOut:
+        """Check the lease, then run ``action(controller, source)`` under the lock; the source is the holder."""
+        holder = rt.leases.check(lease).holder
 
         def run(c: Controller) -> CommandOut:
             if idle:
                 rt.recipe.require_idle(what)
-            result = action(c, source(name))
+            result = action(c, holder)
             duration = getattr(result, "duration_s", None)
             return CommandOut(message=what, state=str(c.state), duration_s=duration)
 
@@ -175,29 +175,29 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     # ------------------------------------------------------------------ commands
     @app.post("/v1/arm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def arm(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+    def arm(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Arm the node (from DISABLED)."""
-        return command(x_millctl_lease, x_millctl_client, "arm", lambda c, s: c.arm(source=s))
+        return command(x_millctl_lease, "arm", lambda c, s: c.arm(source=s))
 
     @app.post("/v1/disarm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def disarm(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+    def disarm(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Disarm the node (from ARMED at standstill)."""
-        return command(x_millctl_lease, x_millctl_client, "disarm", lambda c, s: c.disarm(source=s))
+        return command(x_millctl_lease, "disarm", lambda c, s: c.disarm(source=s))
 
     @app.post("/v1/stop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def stop(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+    def stop(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Controlled stop (stop category 1): both drives ramp down inside the envelope, heater off."""
 
         def act(c: Controller, s: str) -> None:
             rt.recipe.abort_if_active(s)
             c.stop(source=s)
 
-        return command(x_millctl_lease, x_millctl_client, "stop", act, idle=False)
+        return command(x_millctl_lease, "stop", act, idle=False)
 
     @app.post("/v1/reset", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def reset(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+    def reset(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Clear a latched trip (fresh telemetry, both drives at standstill)."""
-        return command(x_millctl_lease, x_millctl_client, "reset", lambda c, s: c.reset(source=s))
+        return command(x_millctl_lease, "reset", lambda c, s: c.reset(source=s))
 
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
@@ -209,11 +209,11 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(
-        body: SetpointsRequest, x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None
+        body: SetpointsRequest, x_millctl_lease: LeaseId = None
     ) -> CommandOut:
         """Ramp to new drive speeds (rpm); refused with the interlock's reason when outside the envelope."""
         return command(
-            x_millctl_lease, x_millctl_client,
+            x_millctl_lease,
             f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm",
             lambda c, s: c.set_speeds(body.rotary_rpm, body.vibration_rpm, rotary_rate_rpm_s=body.rotary_rate_rpm_s,
                                       vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear, source=s),
@@ -221,17 +221,17 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     @app.post("/v1/furnace", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def furnace(
-        body: FurnaceRequest, x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None
+        body: FurnaceRequest, x_millctl_lease: LeaseId = None
     ) -> CommandOut:
         """Set the furnace target (°C, ramped at the heating rate), or null to turn the heater off."""
         what = "heater off" if body.temp_c is None else f"furnace to {body.temp_c:.1f} °C"
-        return command(x_millctl_lease, x_millctl_client, what,
+        return command(x_millctl_lease, what,
                        lambda c, s: c.set_furnace(body.temp_c, rate_c_per_min=body.rate_c_per_min, source=s))
 
     # ------------------------------------------------------------------ recipes
     def recipe_action(lease: str | None, action: Any) -> RecipeOut:
-        rt.leases.check(lease)
-        progress = rt.call(lambda c: action())
+        holder = rt.leases.check(lease).holder
+        progress = rt.call(lambda c: action(holder))
         return RecipeOut(active=rt.recipe.active, progress=finite(progress))
 
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
@@ -242,27 +242,27 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             return RecipeOut(active=rt.recipe.active, progress=finite(progress or {}))
 
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
-    def recipe_run(body: RecipeRunRequest, x_millctl_client: ClientName = None,
-                   x_millctl_lease: LeaseId = None) -> RecipeOut:
+    def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:
         """Load, pre-flight and start a recipe (refused with every violation if its plan leaves the envelope)."""
-        return recipe_action(x_millctl_lease, lambda: rt.recipe.run(body.path, rt.config, source(x_millctl_client)))
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.run(body.path, rt.config, who))
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
-    def recipe_pause(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None,
-                     body: Annotated[RecipePauseRequest | None, Body()] = None) -> RecipeOut:
+    def recipe_pause(
+        x_millctl_lease: LeaseId = None, body: Annotated[RecipePauseRequest | None, Body()] = None
+    ) -> RecipeOut:
         """Pause the run at the next step boundary, or ``now`` (holding the current setpoints)."""
         now = bool(body and body.now)
-        return recipe_action(x_millctl_lease, lambda: rt.recipe.pause(now, source(x_millctl_client)))
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.pause(now, who))
 
     @app.post("/v1/recipe/resume", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
-    def recipe_resume(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> RecipeOut:
+    def recipe_resume(x_millctl_lease: LeaseId = None) -> RecipeOut:
         """Resume a paused or held run."""
-        return recipe_action(x_millctl_lease, lambda: rt.recipe.resume(source(x_millctl_client)))
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.resume(who))
 
     @app.post("/v1/recipe/abort", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
-    def recipe_abort(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> RecipeOut:
+    def recipe_abort(x_millctl_lease: LeaseId = None) -> RecipeOut:
         """Abort the run with a controlled stop."""
-        return recipe_action(x_millctl_lease, lambda: rt.recipe.abort(source(x_millctl_client)))
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.abort(who))
 
     return app
 
