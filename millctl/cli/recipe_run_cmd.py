@@ -101,8 +101,8 @@ class _EmbeddedService:
             if self.proc.poll() is not None:
                 raise BusError(f"the embedded service exited with code {self.proc.returncode}; see {self.log_path}")
             with contextlib.suppress(BusError):
-                client.status()
-                return
+                if client.status()["state"] != "DISCONNECTED":  # the controller has seen the node
+                    return
             time.sleep(0.2)
         raise BusError(
             f"the embedded service did not start within {SERVICE_START_TIMEOUT_S:.0f} s; see {self.log_path}"

@@ -62,6 +62,9 @@ _WIRE_STATE = {
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm)."""
 
+RESET_TIMEOUT_S = 2.0
+"""A reset the node has not completed within this time is given up, with its reason (s)."""
+
 
 class CommandRefused(InterlockError):
     """A command that the current state does not allow; nothing was sent."""
@@ -100,6 +103,9 @@ class Controller:
         self.heating_rate_c_per_min = config.furnace.max_heating_rate_c_per_min
         self.trip_cause = ""
         self._reset_pending = False
+        self._reset_source = "operator"
+        self._reset_sent: CommandCode | None = None
+        self._reset_until_s = 0.0
         self._disarm_pending = False
         self._last_tick_s = clock.now()
         self._next_heartbeat_s = clock.now()
@@ -278,12 +284,21 @@ class Controller:
         self.tracker.reset_links()
         self.monitor.reset()
         self._reset_pending = True
-        node = self.node_status
-        if node is not None and node.state is NodeState.FAULT:
-            self._command(CommandCode.RESET, source, f"clear latched trip: {self.trip_cause}")
-        elif node is not None and node.state is NodeState.ARMED:
-            self._command(CommandCode.DISARM, source, "reset: back to DISABLED")
+        self._reset_source = source
+        self._reset_sent = None
+        self._reset_until_s = now + RESET_TIMEOUT_S
         self._emit(EventKind.COMMAND, source, "reset requested")
+        self._advance_reset(self.node_status)
+
+    def _advance_reset(self, node: NodeStatus | None) -> None:
+        """Send what the node's state needs for a pending reset: RESET in FAULT, DISARM in ARMED (once each)."""
+        if node is None:
+            return
+        wanted = {NodeState.FAULT: CommandCode.RESET, NodeState.ARMED: CommandCode.DISARM}.get(node.state)
+        if wanted is not None and wanted is not self._reset_sent:
+            self._reset_sent = wanted
+            reason = f"clear latched trip: {self.trip_cause}" if wanted is CommandCode.RESET else "reset: to DISABLED"
+            self._command(wanted, self._reset_source, reason)
 
     # ------------------------------------------------------------------ trips
     def _trip(self, cause: str, source: str = "interlock") -> None:
@@ -331,6 +346,14 @@ class Controller:
 
     def _on_node_status(self, status: NodeStatus) -> None:
         state, node = self.state, status.state
+        if state is S.TRIPPED and self._reset_pending:
+            if node is NodeState.DISABLED and not status.fault_bits:
+                self._reset_pending = False
+                self.trip_cause = ""
+                self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
+            else:
+                self._advance_reset(status)
+            return
         if node is NodeState.FAULT:
             if state is S.TRIPPED:
                 return
@@ -353,10 +376,6 @@ class Controller:
             self.machine.go(S.DISABLED, "node DISABLED (disarmed)")
         elif state in (S.ARMED, S.RUNNING, S.STOPPING) and node is NodeState.DISABLED:
             self._trip(f"node reports DISABLED while the controller is {state}: the node restarted", "node")
-        elif state is S.TRIPPED and self._reset_pending and node is NodeState.DISABLED and not status.fault_bits:
-            self._reset_pending = False
-            self.trip_cause = ""
-            self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
 
     def _on_measured(self, measured: DriveTelemetry) -> None:
         if self.state in (S.DISCONNECTED, S.TRIPPED):
@@ -368,6 +387,15 @@ class Controller:
     def _check(self, now: float) -> None:
         if self.state is S.DISCONNECTED:
             return
+        if self._reset_pending and now > self._reset_until_s:
+            self._reset_pending = False
+            node = self.node_status
+            shown = f"{node.state.name}, last refusal {node.last_refusal.name}" if node else "unknown"
+            self._emit(
+                EventKind.REFUSAL,
+                self._reset_source,
+                f"reset did not complete within {RESET_TIMEOUT_S:.0f} s: node {shown}; clear the cause and retry",
+            )
         problems = self.tracker.stale(now) + self.tracker.link_faults()
         if problems and self.state is not S.TRIPPED:
             self._trip("; ".join(problems))

@@ -148,3 +148,25 @@ def test_every_state_change_has_a_reason(bench):
     changes = [e for e in bench.events if e.kind is EventKind.STATE]
     assert [e.data["target_state"] for e in changes] == ["DISABLED", "ARMED"]
     assert all(e.data["reason"] for e in changes)
+
+
+def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench):
+    armed(bench)
+    bench.controller.estop()
+    bench.controller.reset()  # the node has not reported FAULT yet: nothing to send so far
+    bench.collect()
+    assert Command(CommandCode.RESET) not in [d.message for _, d in bench.of(Command)]
+    bench.run(0.2, state=NodeState.FAULT)
+    assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.RESET)) == 1
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+
+
+def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench):
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    bench.run(3.0, state=NodeState.FAULT)  # the node keeps its fault
+    assert bench.controller.state is S.TRIPPED
+    assert any(e.kind is EventKind.REFUSAL and "reset did not complete" in e.message for e in bench.events)
