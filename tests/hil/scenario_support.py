@@ -1,0 +1,476 @@
+"""Helpers of the hil scenario suite (tests/hil/test_scenarios.py): the mill under test, the bus probe, the bounds.
+
+``Mill`` starts the controller service (``millctl serve``) and the simulated
+node (``python -m firmware_sim --fault-injection``) as separate processes on
+the transport under test; on ``virtual`` the service runs its embedded node
+and there is no probe. ``Probe`` is the third bus of a scenario, in the test
+process: it injects faults, plays the rogue sender and the E-stop button, and
+captures every frame with its receive timestamp (the kernel's, on
+udp_multicast and socketcan), from which each scenario measures its
+reaction time. ``Bounds`` derives every safety bound from the config and the
+DBC's cycle times. ``report_timing`` prints ``HIL-TIMING {json}`` and appends
+it to the file named by ``MILLCTL_HIL_TIMINGS``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import can
+import pytest
+
+from millctl.client import Client
+from millctl.config import load_config
+from millctl.config.loader import packaged_file
+from millctl.config.models import Bus, MillConfig
+from millctl.errors import MillctlError
+from millctl.protocol import (
+    Codec,
+    Command,
+    CommandCode,
+    Decoded,
+    DriveTelemetry,
+    FaultCode,
+    MillMessage,
+    NodeState,
+    NodeStatus,
+    ProtocolError,
+    SimFault,
+    SimFaultCode,
+    default_codec,
+    open_bus,
+)
+from millctl.safety import Envelope
+from tests.hil.conftest import IN_VM, time_scale
+
+if TYPE_CHECKING:
+    import subprocess
+
+    from tests.hil.conftest import Spawner, Transport
+
+STANDSTILL_RPM = 1.0
+"""Measured speeds below this count as standstill (rpm), as in the controller."""
+SCHEDULING_ALLOWANCE_S = 0.05
+"""Added to every reaction bound on the host (s): late wake-ups of non-real-time processes on a loaded machine."""
+POLL_S = 0.02
+"""How often the wait helpers look again (s)."""
+
+
+# --- bounds ---------------------------------------------------------------------------------------------------
+
+
+def bound_scale() -> float:
+    """The factor on every safety bound: ``time_scale()`` inside the VM, 1 on the host (the tight bounds)."""
+    return time_scale() if IN_VM else 1.0
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Reaction-time bounds (s), each derived from the config and the DBC (docs/safety.md, "What trips").
+
+    Every bound is the sum of what the chain of reactions may take by design:
+    a receiver sees a frame at its next tick, a state change reaches the bus
+    with the next periodic frame. ``scheduling_s`` allows for the processes'
+    sleeping loops waking late: the simulated node and the controller are
+    ordinary Python processes, not real-time tasks, and on a loaded 2-core
+    host a wake-up can come tens of ms late (``SCHEDULING_ALLOWANCE_S``,
+    env ``MILLCTL_HIL_SCHEDULING_S``).
+    """
+
+    config: MillConfig
+    codec: Codec
+
+    def _period(self, kind: type[MillMessage]) -> float:
+        period = self.codec.cycle_time_s(kind)
+        assert period is not None, f"{kind.__name__} has no cycle time in the DBC"
+        return period
+
+    @property
+    def scheduling_s(self) -> float:
+        """The allowance for late wake-ups of the processes in the chain (s)."""
+        return float(os.environ.get("MILLCTL_HIL_SCHEDULING_S", SCHEDULING_ALLOWANCE_S))
+
+    def scaled(self, seconds: float) -> float:
+        """``seconds`` of designed reaction plus the scheduling allowance, times the VM's factor."""
+        return (seconds + self.scheduling_s) * bound_scale()
+
+    @property
+    def node_reports_s(self) -> float:
+        """From a frame on the bus to the node's NodeStatus reporting its effect: one tick, one status period."""
+        return self.scaled(self.config.timing.node_tick_s + self._period(NodeStatus))
+
+    @property
+    def watchdog_s(self) -> float:
+        """Last heartbeat on the bus → NodeStatus FAULT/WATCHDOG: the timeout, one node tick, one status period."""
+        timing = self.config.timing
+        return self.scaled(timing.watchdog_timeout_s + timing.node_tick_s + self._period(NodeStatus))
+
+    @property
+    def measured_trip_s(self) -> float:
+        """First out-of-envelope DriveTelemetry → STOP: the rest of the debounce samples, one controller tick."""
+        samples = self.config.interlock.debounce_samples - 1
+        return self.scaled(samples * self._period(DriveTelemetry) + self.config.timing.controller_tick_s)
+
+    @property
+    def e2e_trip_s(self) -> float:
+        """First corrupted DriveTelemetry → STOP: ``e2e_error_limit`` bad frames in a row, one controller tick."""
+        frames = self.config.interlock.e2e_error_limit - 1
+        return self.scaled(frames * self._period(DriveTelemetry) + self.config.timing.controller_tick_s)
+
+    @property
+    def stale_trip_s(self) -> float:
+        """Last node frame → STOP: the longest stale bound of the safety-relevant frames, one controller tick."""
+        interlock = self.config.interlock
+        periods = [self._period(kind) for kind in (NodeStatus, DriveTelemetry)]
+        stale = max(max(interlock.stale_periods * p, interlock.min_stale_s) for p in periods)
+        return self.scaled(stale + self.config.timing.controller_tick_s)
+
+    @property
+    def heartbeat_gap_s(self) -> float:
+        """The longest gap between controller heartbeats the node tolerates: its watchdog timeout (not padded)."""
+        return self.config.timing.watchdog_timeout_s * bound_scale()
+
+
+# --- timing report --------------------------------------------------------------------------------------------
+
+
+def report_timing(
+    capsys: pytest.CaptureFixture[str], name: str, transport: str, measured_s: float, bound_s: float
+) -> None:
+    """Print ``HIL-TIMING {json}`` (past pytest's capture) and append it to ``$MILLCTL_HIL_TIMINGS`` if set."""
+    record = {
+        "name": name,
+        "transport": transport,
+        "measured_s": round(measured_s, 4),
+        "bound_s": round(bound_s, 4),
+        "in_vm": IN_VM,
+        "time_scale": bound_scale(),
+    }
+    line = "HIL-TIMING " + json.dumps(record)
+    with capsys.disabled():
+        print(f"\n{line}")
+    if path := os.environ.get("MILLCTL_HIL_TIMINGS"):
+        with open(path, "a", encoding="utf-8") as out:
+            out.write(json.dumps(record) + "\n")
+
+
+# --- config ---------------------------------------------------------------------------------------------------
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    return json.dumps(value)
+
+
+def write_config(directory: Path, transport: Transport) -> Path:
+    """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``."""
+    text = packaged_file("mill.toml").read_text(encoding="utf-8")
+    head = text.partition("[bus]")[0]
+    sections = {
+        "bus": transport.bus_config_fields(),
+        "service": {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")},
+    }
+    body = "".join(
+        f"[{name}]\n" + "".join(f"{key} = {_toml_value(value)}\n" for key, value in fields.items()) + "\n"
+        for name, fields in sections.items()
+    )
+    path = directory / "mill.toml"
+    path.write_text(head + body, encoding="utf-8")
+    return path
+
+
+# --- the probe ------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Seen:
+    """One frame the probe captured: its receive time (s, wall clock), the raw frame and its decoding."""
+
+    t: float
+    frame: can.Message
+    decoded: Decoded | None
+    """None for frames the codec does not know (babble) or cannot read."""
+
+    @property
+    def message(self) -> MillMessage | None:
+        """The decoded message; None when unknown or its CRC failed."""
+        return self.decoded.message if self.decoded is not None else None
+
+    @property
+    def crc_failed(self) -> bool:
+        """True for an E2E-protected frame whose CRC did not check."""
+        return self.decoded is not None and not self.decoded.crc_ok
+
+
+def is_status(state: NodeState | None = None, first_fault: FaultCode | None = None) -> Callable[[Seen], bool]:
+    """A predicate: a NodeStatus (in ``state``, with ``first_fault``)."""
+
+    def check(seen: Seen) -> bool:
+        m = seen.message
+        return (
+            isinstance(m, NodeStatus)
+            and (state is None or m.state is state)
+            and (first_fault is None or FaultCode(m.first_fault) is first_fault)
+        )
+
+    return check
+
+
+def is_command(code: CommandCode) -> Callable[[Seen], bool]:
+    """A predicate: a Command frame with ``code``."""
+    return lambda seen: isinstance(seen.message, Command) and seen.message.command is code
+
+
+def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
+    """A predicate: a frame of this kind, decoded or not (a corrupted frame still has its identifier)."""
+    return lambda seen: seen.decoded is not None and seen.decoded.kind is kind
+
+
+class Probe:
+    """The third bus: a capture thread that timestamps every frame, and a sender (faults, rogue frames, E-stop).
+
+    It is opened by the project's bus factory, so on udp_multicast it does not
+    hear its own frames (like a real CAN controller).
+    """
+
+    def __init__(self, bus_config: Bus, codec: Codec) -> None:
+        self.bus = open_bus(bus_config)
+        self.codec = codec
+        self._seen: list[Seen] = []
+        self._lock = threading.Lock()
+        self._halt = threading.Event()
+        self._thread = threading.Thread(target=self._capture, name="hil-probe", daemon=True)
+        self._thread.start()
+
+    def _capture(self) -> None:
+        while not self._halt.is_set():
+            frame = self.bus.recv(0.05)
+            if frame is None:
+                continue
+            try:
+                decoded: Decoded | None = self.codec.decode(frame)
+            except ProtocolError:
+                decoded = None
+            t = frame.timestamp or time.time()
+            with self._lock:
+                self._seen.append(Seen(t, frame, decoded))
+
+    def send(self, message: MillMessage, counter: int = 0) -> float:
+        """Send one message; return the wall-clock time just before it went out (s)."""
+        frame = self.codec.encode(message, counter)
+        t = time.time()
+        self.bus.send(frame)
+        return t
+
+    def inject(self, fault: SimFaultCode, param: float = 0.0, active: bool = True) -> float:
+        """Send a SimFault frame to the node (fault injection); return when it was sent."""
+        return self.send(SimFault(fault, active, param))
+
+    def frames(self, after: float = -math.inf, where: Callable[[Seen], bool] | None = None) -> list[Seen]:
+        """Captured frames received after ``after`` (s) matching ``where``, in order."""
+        with self._lock:
+            seen = list(self._seen)
+        return [s for s in seen if s.t > after and (where is None or where(s))]
+
+    def now(self) -> float:
+        """The capture's clock (s, wall clock)."""
+        return time.time()
+
+    def wait_first(self, where: Callable[[Seen], bool], after: float, timeout_s: float, what: str) -> Seen:
+        """The first frame after ``after`` matching ``where``, waiting up to ``timeout_s`` for it to arrive."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            found = self.frames(after, where)
+            if found:
+                return found[0]
+            if time.monotonic() > deadline:
+                pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s")
+            time.sleep(POLL_S)
+
+    def latest(self, kind: type[MillMessage]) -> Any:
+        """The newest decoded message of ``kind`` (None before the first)."""
+        found = self.frames(where=lambda s: isinstance(s.message, kind))
+        return found[-1].message if found else None
+
+    def close(self) -> None:
+        """Stop capturing and shut the bus down."""
+        self._halt.set()
+        self._thread.join(timeout=5.0)
+        self.bus.shutdown()
+
+
+# --- the mill under test --------------------------------------------------------------------------------------
+
+
+def wait_for(condition: Callable[[], Any], timeout_s: float, what: str) -> Any:
+    """Poll ``condition()`` until it returns something true, and return it (a safety net, not a timing check)."""
+    deadline = time.monotonic() + timeout_s
+    error: Exception | None = None
+    while True:
+        try:
+            if result := condition():
+                return result
+        except (can.CanError, OSError, LookupError, MillctlError) as exc:  # e.g. the socket not listening yet
+            error = exc
+        if time.monotonic() > deadline:
+            detail = f" (last error: {error})" if error else ""
+            pytest.fail(f"timed out after {timeout_s:.1f} s waiting for {what}{detail}")
+        time.sleep(POLL_S)
+
+
+class Mill:
+    """The controller service and the node as separate processes (or the service alone on ``virtual``).
+
+    ``client`` commands the service through its API, ``probe`` watches and
+    drives the bus (None on ``virtual``), ``bounds`` are the config's
+    reaction-time bounds.
+    """
+
+    def __init__(self, transport: Transport, spawn: Spawner, directory: Path) -> None:
+        self.transport = transport
+        self.spawn = spawn
+        self.config_path = write_config(directory, transport)
+        self.config = load_config(self.config_path).config
+        self.codec = default_codec()
+        self.bounds = Bounds(self.config, self.codec)
+        self.envelope = Envelope.from_config(self.config)
+        self.socket_path = directory / "mill.sock"
+        self.separate = transport.crosses_processes
+        self.probe = Probe(self.config.bus, self.codec) if self.separate else None
+        self.node: subprocess.Popen[bytes] | None = None
+        self.service: subprocess.Popen[bytes] | None = None
+        self.client = Client(self.socket_path, name="hil")
+
+    # -- processes
+    def start_node(self) -> subprocess.Popen[bytes]:
+        """Start ``python -m firmware_sim --fault-injection`` on the transport."""
+        assert self.separate, "on virtual the node runs inside the service"
+        self.node = self.spawn(["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"])
+        return self.node
+
+    def start_service(self) -> subprocess.Popen[bytes]:
+        """Start ``millctl serve`` and wait for its socket."""
+        self.service = self.spawn(
+            ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)]
+        )
+        service = self.service
+        wait_for(
+            lambda: self.socket_path.exists() or service.poll() is not None,
+            self.timeout(30.0),
+            "the service socket",
+        )
+        assert service.poll() is None, f"the service exited:\n{self.spawn.output(service)}"
+        return service
+
+    def start(self) -> None:
+        """Node (when separate) and service, then wait until the controller has seen the node DISABLED."""
+        if self.separate:
+            self.start_node()
+        self.start_service()
+        self.wait_state("DISABLED", 30.0)
+
+    def kill(self, proc: subprocess.Popen[bytes] | None) -> None:
+        """SIGKILL a process (and its helpers) and reap it."""
+        if proc is not None and proc.poll() is None:
+            self.spawn.stop(proc, signal.SIGKILL)
+
+    def close(self) -> None:
+        """Tear down: the client, the probe, then SIGKILL both processes (their clean shutdown is not under test)."""
+        self.client.close()
+        if self.probe is not None:
+            self.probe.close()
+        self.kill(self.service)
+        self.kill(self.node)
+
+    # -- commanding and watching
+    def timeout(self, seconds: float) -> float:
+        """A safety-net timeout, scaled for the VM."""
+        return self.transport.timeout(seconds)
+
+    def status(self) -> dict[str, Any]:
+        """The controller's status through the API."""
+        return self.client.status()
+
+    def wait_state(self, state: str, timeout_s: float = 10.0) -> dict[str, Any]:
+        """Wait until the controller reports ``state``; return that status."""
+        return wait_for(
+            lambda: (s := self.status())["state"] == state and s,
+            self.timeout(timeout_s),
+            f"the controller to be {state} (service output:\n{self._tail()})",
+        )
+
+    def _tail(self) -> str:
+        return self.spawn.output(self.service)[-3000:] if self.service is not None else ""
+
+    def run_at(self, rotary_rpm: float, vibration_rpm: float) -> dict[str, Any]:
+        """Take control, arm, ramp to the speed pair and wait until the measured speeds are there."""
+        self.client.take_control()
+        self.client.arm()
+        self.wait_state("ARMED")
+        self.client.set_speeds(rotary_rpm, vibration_rpm)
+        return self.wait_speeds(rotary_rpm, vibration_rpm, 30.0)
+
+    def wait_speeds(self, rotary_rpm: float, vibration_rpm: float, timeout_s: float) -> dict[str, Any]:
+        """Wait until both measured speeds are within the measurement tolerance of the pair; return the status."""
+        tolerance = self.config.interlock.measurement_tolerance_rpm
+
+        def there() -> dict[str, Any] | None:
+            s = self.status()
+            if s["state"] == "TRIPPED":
+                pytest.fail(f"tripped on the way to {rotary_rpm}/{vibration_rpm} rpm: {s['trip_cause']}")
+            measured = (s["measured_rotary_rpm"], s["measured_vibration_rpm"])
+            close = all(abs(m - w) <= tolerance for m, w in zip(measured, (rotary_rpm, vibration_rpm), strict=True))
+            return s if close else None
+
+        return wait_for(there, self.timeout(timeout_s), f"measured speeds {rotary_rpm}/{vibration_rpm} rpm")
+
+    def at_standstill(self) -> bool:
+        """Both measured speeds (as the controller sees them) below the standstill threshold."""
+        s = self.status()
+        return max(abs(s["measured_rotary_rpm"]), abs(s["measured_vibration_rpm"])) < STANDSTILL_RPM
+
+    def outside_envelope(self, frames: list[Seen]) -> list[tuple[float, float]]:
+        """Measured pairs in ``frames`` that the envelope (with the measurement tolerance) does not contain."""
+        drives = [s.message for s in frames if isinstance(s.message, DriveTelemetry)]
+        pairs = [(d.rotary_rpm, d.vibration_rpm) for d in drives]
+        return [(r, v) for r, v in pairs if not self.envelope.check_measured(max(r, 0.0), max(v, 0.0)).ok]
+
+
+@contextlib.contextmanager
+def mill_on(transport: Transport, spawn: Spawner, directory: Path) -> Iterator[Mill]:
+    """A started mill on ``transport``, torn down afterwards."""
+    mill = Mill(transport, spawn, directory)
+    try:
+        mill.start()
+        yield mill
+    finally:
+        mill.close()
+
+
+__all__ = [
+    "SCHEDULING_ALLOWANCE_S",
+    "STANDSTILL_RPM",
+    "Bounds",
+    "Mill",
+    "Probe",
+    "Seen",
+    "bound_scale",
+    "is_command",
+    "is_kind",
+    "is_status",
+    "mill_on",
+    "report_timing",
+    "wait_for",
+    "write_config",
+]
