@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "millctl.cli.bus_cmd",
     "millctl.cli.service_cmd",
     "millctl.cli.client_cmd",
+    "millctl.cli.tui_cmd",
 )
 """Command modules, in the order ``--help`` lists them."""
 

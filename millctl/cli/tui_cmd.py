@@ -1,0 +1,51 @@
+"""``millctl tui``: the operator terminal UI; ``--sim`` brings its own simulated service and node."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+
+from millctl.cli.output import stderr_console
+from millctl.errors import ExitCode
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``tui``."""
+    parser = subparsers.add_parser(
+        "tui",
+        help="the operator terminal UI: watch and command the mill through the running service",
+        description=(
+            "A full-screen terminal UI on the controller service: drives, furnace, envelope with the operating "
+            "point, physics, link health, recipe and events; commands from the footer keys and the command palette "
+            "(Ctrl+P); E-stop is Ctrl+X everywhere. Quitting never stops the service. With --sim a private "
+            "simulated service and node are started for a demo, and stopped (controlled stop) on exit."
+        ),
+    )
+    parser.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path of the config)")
+    parser.add_argument("--sim", action="store_true",
+                        help="start the embedded default service with its simulated node on a private socket")
+    parser.set_defaults(handler=_tui)
+
+
+def _tui(args: argparse.Namespace) -> int:
+    from millctl.tui import MillApp, SimService
+
+    if not args.sim:
+        MillApp(args.socket, config=args.config).run()
+        return int(ExitCode.OK)
+    if args.socket:
+        raise SystemExit("millctl tui: --sim uses its own private socket; drop --socket")
+    console = stderr_console()
+    console.print("millctl tui: starting the simulated service and node…", markup=False)
+    with SimService(args.config) as sim:
+        app = MillApp(sim.socket_path, sim=True)
+        previous = signal.signal(signal.SIGHUP, lambda signum, frame: app.exit())  # terminal gone: leave, stop sim
+        try:
+            app.run()
+        finally:
+            signal.signal(signal.SIGHUP, previous)
+        console.print("millctl tui: stopping the simulated service (controlled stop)…", markup=False)
+    return int(ExitCode.OK)
+
+
+__all__ = ["register"]

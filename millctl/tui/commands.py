@@ -1,0 +1,181 @@
+"""The operator's commands: each a textual action, sent by a worker under the control lease.
+
+Refusals come back as notifications with the service's reason (the
+interlock's, the state machine's, or who holds control). E-stop needs no
+lease and is sent at once; if it cannot be delivered the operator is told to
+use the hardware E-stop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import Any
+
+from millctl.client import AsyncClient
+from millctl.tui.format import MOVING_STATES
+from millctl.tui.link import LINK_ERRORS, describe
+from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal, SetRequest
+from millctl.tui.view import MillView
+
+Call = Callable[[AsyncClient], Awaitable[dict[str, Any]]]
+
+QUIT_RELEASE_S = 2.0
+"""At most this long is spent giving control back when quitting (s)."""
+
+
+def default_recipe() -> str:
+    """A recipe path to offer first: ``config/recipes/demo.toml`` under the working directory, if present."""
+    demo = Path("config/recipes/demo.toml")
+    return str(demo.resolve()) if demo.is_file() else ""
+
+
+class Commanding(MillView):
+    """The main screen's commands."""
+
+    def send(self, what: str, call: Call) -> None:
+        """Send a command in a worker (taking control first)."""
+        self.run_worker(self._send(what, call), group="command", exit_on_error=False)
+
+    async def _send(self, what: str, call: Call) -> bool:
+        try:
+            result = await self.link.command(call)
+        except LINK_ERRORS as exc:
+            message, severity = describe(exc)
+            self.notify(message, title=what, severity=severity, timeout=8.0, markup=False)  # type: ignore[arg-type]
+            self.redraw_state()
+            return False
+        ramp = result.get("duration_s")
+        self.notify(f"accepted{f', ramp {ramp:.1f} s' if ramp else ''}", title=what, timeout=3.0)
+        self.redraw_state()
+        return True
+
+    # ------------------------------------------------------------------ the mill
+    def action_estop(self) -> None:
+        """Emergency stop: no lease, no dialog, always tried."""
+        self.run_worker(self._estop(), group="estop", exit_on_error=False)
+
+    async def _estop(self) -> None:
+        try:
+            await self.link.estop()
+        except LINK_ERRORS as exc:
+            self.notify(f"E-STOP NOT DELIVERED ({describe(exc)[0]}): use the mill's hardware E-stop",
+                        title="E-STOP", severity="error", timeout=30.0, markup=False)
+            return
+        self.notify("E-stop sent: the mill stops and the trip latches; reset with r at standstill",
+                    title="E-STOP", severity="warning", timeout=10.0)
+
+    def action_arm(self) -> None:
+        """Arm the node."""
+        self.send("arm", lambda c: c.arm())
+
+    def action_disarm(self) -> None:
+        """Disarm the node."""
+        self.send("disarm", lambda c: c.disarm())
+
+    def action_stop(self) -> None:
+        """Controlled stop (also aborts a running recipe)."""
+        self.send("stop", lambda c: c.stop())
+
+    def action_reset(self) -> None:
+        """Clear a latched trip."""
+        self.send("reset", lambda c: c.reset())
+
+    def action_heater_off(self) -> None:
+        """Turn the furnace heater off."""
+        self.send("heater off", lambda c: c.set_furnace(None))
+
+    def action_set(self) -> None:
+        """Open the setpoint dialog, prefilled with the present targets."""
+        s = self.status
+        temp = s.get("furnace_target_c")
+        modal = SetpointsModal(self.link.check, float(s.get("target_rotary_rpm") or 0.0),
+                               float(s.get("target_vibration_rpm") or 0.0), temp)
+        self.push_screen(modal, self._set_chosen)
+
+    def _set_chosen(self, request: SetRequest | None) -> None:
+        if request is not None:
+            self.run_worker(self._set(request), group="command", exit_on_error=False)
+
+    async def _set(self, request: SetRequest) -> None:
+        what = f"set ω_r {request.rotary_rpm:g} rpm, ω_v {request.vibration_rpm:g} rpm"
+        ok = await self._send(what, lambda c: c.set_speeds(request.rotary_rpm, request.vibration_rpm))
+        if ok and request.furnace:
+            temp = request.temp_c
+            await self._send("heater off" if temp is None else f"furnace {temp:g} °C", lambda c: c.set_furnace(temp))
+
+    # ------------------------------------------------------------------ recipes
+    def action_recipe_run(self) -> None:
+        """Ask for a recipe file and run it."""
+        self.push_screen(RecipeModal(default_recipe()), self._recipe_chosen)
+
+    def _recipe_chosen(self, path: str | None) -> None:
+        if path:
+            self.send(f"recipe {Path(path).name}", lambda c: c.recipe_run(path))
+
+    def action_recipe_pause(self) -> None:
+        """Pause at the next step boundary, or resume a paused or held run."""
+        state = (self.recipe.get("progress") or {}).get("state")
+        if state in ("PAUSED", "HELD"):
+            self.send("resume recipe", lambda c: c.recipe_resume())
+        else:
+            self.send("pause recipe", lambda c: c.recipe_pause(False))
+
+    def action_pause_now(self) -> None:
+        """Pause the run now, holding the setpoints."""
+        self.send("pause recipe now", lambda c: c.recipe_pause(True))
+
+    def action_recipe_abort(self) -> None:
+        """Abort the run (controlled stop)."""
+        self.send("abort recipe", lambda c: c.recipe_abort())
+
+    # ------------------------------------------------------------------ control and quitting
+    def action_control(self) -> None:
+        """Take control, or give it back if we hold it."""
+        if self.link.holds_control:
+            self.action_release()
+        else:
+            self.action_take()
+
+    def action_take(self) -> None:
+        """Take the control lease."""
+        self.send("take control", lambda c: c.take_control())
+
+    def action_take_force(self) -> None:
+        """Take over another client's expired lease."""
+        self.send("take over control", lambda c: c.take_control(force=True))
+
+    def action_release(self) -> None:
+        """Give the control lease back."""
+        self.run_worker(self._release(), group="command", exit_on_error=False)
+
+    async def _release(self) -> None:
+        await self.link.release_control()
+        self.notify("control released", timeout=3.0)
+        self.redraw_state()
+
+    async def action_quit(self) -> None:
+        """Quit; ask first while the mill runs. Quitting never stops the service (except the one --sim started)."""
+        state = str(self.status.get("state", ""))
+        running = state in MOVING_STATES or bool(self.recipe.get("active"))
+        if not running:
+            await self._leave()
+            return
+        after = ("The simulated service started with --sim stops with the TUI (controlled stop)." if self.sim else
+                 "The service keeps the mill running; reconnect with `millctl tui`.")
+        question = f"The mill is {state}{' with a recipe running' if self.recipe.get('active') else ''}. Quit? {after}"
+        self.push_screen(ConfirmModal(question), self._quit_answered)
+
+    def _quit_answered(self, answer: bool | None) -> None:
+        if answer:
+            self.run_worker(self._leave(), exit_on_error=False)
+
+    async def _leave(self) -> None:
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(self.link.release_control(), QUIT_RELEASE_S)
+        self.exit()
+
+
+__all__ = ["QUIT_RELEASE_S", "Commanding", "default_recipe"]

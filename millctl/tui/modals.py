@@ -1,0 +1,201 @@
+"""Modal dialogs: set speeds and furnace (checked against the service's envelope before sending), recipe, confirm.
+
+The setpoint dialog never decides a limit itself: every keystroke asks the
+service's ``POST /v1/envelope/check`` (the interlock's own
+:meth:`millctl.safety.Envelope.check`), shows the limit at the typed ω_v, and
+refuses to send a point it rejects, with the interlock's reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from rich.text import Text
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Input, Label, Static
+
+from millctl.errors import MillctlError
+
+Checker = Callable[[float, float, float | None], Awaitable[dict[str, Any]]]
+"""``check(rotary_rpm, vibration_rpm, temp_c)`` → the service's verdict dict."""
+
+
+@dataclass(frozen=True)
+class SetRequest:
+    """What the operator asked for: speeds (rpm) and, when given, a furnace target (°C) or heater off."""
+
+    rotary_rpm: float
+    vibration_rpm: float
+    furnace: bool
+    temp_c: float | None
+
+
+class InputError(ValueError):
+    """A field that is not a usable number."""
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        value = float(text.strip())
+    except ValueError:
+        raise InputError(f"{what}: {text.strip() or 'empty'!r} is not a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{what}: {value} is not a finite number")
+    return value
+
+
+def parse_request(rot: str, vib: str, temp: str) -> SetRequest:
+    """Parse the dialog's fields; an empty furnace field leaves the furnace alone, ``off`` turns the heater off."""
+    temp = temp.strip().lower()
+    furnace = bool(temp)
+    temp_c = None if temp in ("", "off") else _number(temp, "furnace °C")
+    return SetRequest(_number(rot, "ω_r"), _number(vib, "ω_v"), furnace, temp_c)
+
+
+class SetpointsModal(ModalScreen[SetRequest | None]):
+    """Ask for ω_r, ω_v (rpm) and a furnace target; show the live limit; refuse out-of-envelope values."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("escape", "cancel", "Cancel"),
+        Binding("enter", "send", "Send", priority=True),
+    ]
+
+    def __init__(self, check: Checker, rotary_rpm: float, vibration_rpm: float, temp_c: float | None) -> None:
+        super().__init__()
+        self.check = check
+        self.initial = (rotary_rpm, vibration_rpm, temp_c)
+
+    def compose(self) -> ComposeResult:
+        """Three fields, the live limit, the verdict and the buttons."""
+        rot, vib, temp = self.initial
+        with Vertical(id="dialog", classes="dialog"):
+            yield Label("Set speeds and furnace — checked against the interlock before anything is sent",
+                        classes="dialog-title")
+            with Horizontal(classes="field"):
+                yield Label("ω_v vibration (rpm)", classes="field-label")
+                yield Input(f"{vib:g}", id="vib", type="number")
+            with Horizontal(classes="field"):
+                yield Label("ω_r rotary (rpm)", classes="field-label")
+                yield Input(f"{rot:g}", id="rot", type="number")
+            with Horizontal(classes="field"):
+                yield Label("furnace (°C, off, or empty)", classes="field-label")
+                yield Input("" if temp is None else f"{temp:g}", id="temp", placeholder="unchanged")
+            yield Static(id="limit")
+            yield Static(id="verdict")
+            yield Static("Enter: check and send    Esc: cancel    Tab: next field", classes="hint")
+
+    def on_mount(self) -> None:
+        """Focus ω_v first (the limit depends on it) and show the limit for the prefilled values."""
+        self.query_one("#vib", Input).focus()
+        self.refresh_check()
+
+    def fields(self) -> SetRequest:
+        """The parsed fields (raises :class:`InputError`)."""
+        return parse_request(*(self.query_one(f"#{name}", Input).value for name in ("rot", "vib", "temp")))
+
+    def on_input_changed(self, event: Input.Changed) -> None:
+        """Re-check on every keystroke."""
+        self.refresh_check()
+
+    @work(exclusive=True, group="check")
+    async def refresh_check(self) -> dict[str, Any] | None:
+        """Ask the service for the limit at the typed ω_v and its verdict on the typed point; show both."""
+        return await self._check(show_ok=True)
+
+    async def _check(self, show_ok: bool) -> dict[str, Any] | None:
+        limit, verdict = self.query_one("#limit", Static), self.query_one("#verdict", Static)
+        try:
+            request = self.fields()
+        except InputError as exc:
+            verdict.update(Text(str(exc), style="yellow"))
+            return None
+        try:
+            result = await self.check(request.rotary_rpm, request.vibration_rpm, request.temp_c)
+        except MillctlError as exc:
+            verdict.update(Text(f"cannot check with the service, nothing will be sent: {exc}", style="bold red"))
+            return None
+        limit_rpm = result.get("omega_r_limit_rpm")
+        limit_text = "none" if limit_rpm is None else f"{limit_rpm:.1f} rpm"
+        limit.update(Text.assemble(("limit at ω_v = ", "dim"), f"{request.vibration_rpm:g} rpm: ",
+                                   (f"ω_r ≤ {limit_text}", "bold cyan")))
+        if result.get("ok"):
+            margin = result.get("margin_rpm")
+            verdict.update(Text(f"inside the envelope{'' if margin is None else f', margin {margin:.1f} rpm'}",
+                                style="green") if show_ok else "")
+        else:
+            verdict.update(Text(f"refused: {result.get('reason')}", style="bold red"))
+        return result
+
+    async def action_send(self) -> None:
+        """Check once more; send only a point the interlock accepts."""
+        try:
+            request = self.fields()
+        except InputError as exc:
+            self.query_one("#verdict", Static).update(Text(str(exc), style="bold red"))
+            return
+        result = await self._check(show_ok=True)
+        if result is not None and result.get("ok"):
+            self.dismiss(request)
+
+    def action_cancel(self) -> None:
+        """Close without sending."""
+        self.dismiss(None)
+
+
+class RecipeModal(ModalScreen[str | None]):
+    """Ask for a recipe file to run (a path on the service's machine; the service pre-flights it)."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape", "cancel", "Cancel")]
+
+    def __init__(self, default_path: str) -> None:
+        super().__init__()
+        self.default_path = default_path
+
+    def compose(self) -> ComposeResult:
+        """A path field and a hint."""
+        with Vertical(id="dialog", classes="dialog"):
+            yield Label("Run a recipe file (TOML); the service checks its whole plan first", classes="dialog-title")
+            yield Input(self.default_path, id="path", placeholder="path/to/recipe.toml")
+            yield Static("Enter runs it, Esc cancels. Pause/resume with p, abort with b.", classes="hint")
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        """Run the typed path."""
+        path = event.value.strip()
+        self.dismiss(path or None)
+
+    def action_cancel(self) -> None:
+        """Close without running."""
+        self.dismiss(None)
+
+
+class ConfirmModal(ModalScreen[bool]):
+    """A yes/no question."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("y", "answer(True)", "Yes"),
+        Binding("n,escape", "answer(False)", "No"),
+    ]
+
+    def __init__(self, question: str) -> None:
+        super().__init__()
+        self.question = question
+
+    def compose(self) -> ComposeResult:
+        """The question and two buttons."""
+        with Vertical(id="dialog", classes="dialog"):
+            yield Static(self.question)
+            yield Static("y: yes    n or Esc: no", classes="hint")
+
+    def action_answer(self, answer: bool) -> None:
+        """Close with the answer."""
+        self.dismiss(answer)
+
+
+__all__ = ["Checker", "ConfirmModal", "InputError", "RecipeModal", "SetRequest", "SetpointsModal", "parse_request"]

@@ -1,0 +1,36 @@
+"""The TUI's stylesheet (textual CSS), kept in Python so it ships with the package."""
+
+from __future__ import annotations
+
+CSS = """
+Screen { layout: vertical; }
+#topbar { height: 1; background: $panel; padding: 0 1; }
+#offline { height: auto; display: none; background: $warning 30%; color: $text; padding: 0 1; text-style: bold; }
+#offline.shown { display: block; }
+#trip { height: auto; display: none; background: red; color: white; padding: 0 1; }
+#trip.shown { display: block; }
+.panel { border: round $primary 60%; border-title-color: $text-accent; padding: 0 1; }
+#row1 { height: 20; }
+#left { width: 1fr; min-width: 38; }
+#envelope { width: 2fr; height: 100%; }
+TrendPanel { height: 1fr; }
+.panel-text { height: 3; }
+.trend { height: 1fr; min-height: 1; }
+#row2 { height: 8; }
+#state { width: 1fr; height: 100%; }
+#physics { width: 1fr; height: 100%; }
+#links { width: 1.5fr; min-width: 48; height: 100%; }
+#events { height: 1fr; min-height: 4; }
+.dialog { width: 84; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
+SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
+.dialog-title { text-style: bold; margin-bottom: 1; }
+.field { height: 3; }
+.field-label { width: 28; padding: 1 1 0 0; }
+.field Input { width: 1fr; }
+#limit, #verdict { height: auto; min-height: 1; margin-top: 1; }
+.buttons { height: 3; margin-top: 1; align: right middle; }
+.buttons Button { margin-left: 2; }
+.hint { color: $text-muted; margin-top: 1; }
+"""
+
+__all__ = ["CSS"]

@@ -1,0 +1,180 @@
+"""The main screen of ``millctl tui``: layout, panels, banners, the event log and the top bar.
+
+:class:`MillView` only shows what it is given (:meth:`apply_status`,
+:meth:`apply_envelope`, :meth:`apply_control`, :meth:`apply_recipe`,
+:meth:`apply_event`); the follower feeds it from the service, tests feed it
+frozen data.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+from rich.text import Text
+from textual.app import App, ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Footer, RichLog, Static
+from textual.worker import Worker, WorkerState
+
+from millctl.tui.format import state_style
+from millctl.tui.link import ServiceLink
+from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
+from millctl.tui.styles import CSS
+
+log = logging.getLogger(__name__)
+
+NOTIFY_KINDS = {"trip": "error", "refusal": "warning", "state": "information", "control": "information",
+                "service": "information"}
+"""Event kinds shown as notifications when they happen (the log shows every kind), with their severity."""
+
+
+class MillView(App[None]):
+    """The operator terminal UI's screen for one service socket (display only; see :class:`millctl.tui.MillApp`)."""
+
+    CSS = CSS
+    TITLE = "millctl"
+
+    def __init__(self, socket_path: str | None = None, *, config: str | None = None, live: bool = True,
+                 sim: bool = False) -> None:
+        """``live=False`` shows only what :meth:`apply_status` and friends are given (tests, snapshots)."""
+        super().__init__()
+        self.link = ServiceLink(socket_path, config=config)
+        self.live = live
+        self.sim = sim
+        self.status: dict[str, Any] = {}
+        self.control: dict[str, Any] = {}
+        self.recipe: dict[str, Any] = {}
+        self.online = False
+        self.last_seq = 0
+
+    def compose(self) -> ComposeResult:
+        """The main screen."""
+        yield Static(id="topbar")
+        yield Static(id="offline")
+        yield Static(id="trip")
+        with Horizontal(id="row1"):
+            with Vertical(id="left"):
+                yield DrivePanel("rotary", "rotary drive ω_r", id="rotary")
+                yield DrivePanel("vibration", "vibration drive ω_v", id="vibration")
+                yield FurnacePanel("furnace", id="furnace")
+            yield EnvelopePanel(id="envelope")
+        with Horizontal(id="row2"):
+            yield StatePanel(id="state", classes="panel")
+            yield PhysicsPanel(id="physics", classes="panel")
+            yield LinkPanel(id="links", classes="panel")
+        yield RichLog(id="events", classes="panel", max_lines=1000, wrap=True, markup=False)
+        yield Footer(compact=True)
+
+    def on_mount(self) -> None:
+        """Title the panels; until the follower connects, say so."""
+        for panel_id, title in (("state", "controller"), ("physics", "physics"), ("links", "node links"),
+                                ("events", "events")):
+            self.main_screen.query_one(f"#{panel_id}").border_title = title
+        self.show_offline(None if not self.live else "connecting…")
+        self.redraw_top()
+
+    async def on_unmount(self) -> None:
+        """Close the connection (a held lease is released by quitting)."""
+        await self.link.aclose()
+
+    def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
+        """A worker that failed unexpectedly is logged and shown, never fatal (their errors do not exit the app)."""
+        if event.state is WorkerState.ERROR:
+            error = event.worker.error
+            log.error("worker %s failed: %r", event.worker.name, error, exc_info=error)
+            self.notify(f"internal error in {event.worker.name}: {error!r}", severity="error", markup=False)
+
+    @property
+    def main_screen(self) -> Screen[Any]:
+        """The main screen (under any dialog): panels are looked up here, not on the dialog shown on top."""
+        return self.screen_stack[0]
+
+    # ------------------------------------------------------------------ what the follower (or a test) feeds in
+    def apply_status(self, status: dict[str, Any]) -> None:
+        """Show a status (``GET /v1/status`` or a stream item)."""
+        self.status = status
+        self.main_screen.query_one("#rotary", DrivePanel).show(status)
+        self.main_screen.query_one("#vibration", DrivePanel).show(status)
+        self.main_screen.query_one("#furnace", FurnacePanel).show(status)
+        self.main_screen.query_one("#envelope", EnvelopePanel).show(status)
+        self.main_screen.query_one("#physics", PhysicsPanel).show(status)
+        self.main_screen.query_one("#links", LinkPanel).show(status)
+        self.show_trip(status)
+        self.redraw_state()
+
+    def apply_envelope(self, envelope: dict[str, Any]) -> None:
+        """Take the service's limit curve (``GET /v1/envelope``)."""
+        self.main_screen.query_one("#envelope", EnvelopePanel).set_envelope(envelope)
+
+    def apply_control(self, control: dict[str, Any]) -> None:
+        """Show who holds control (``GET /v1/control``)."""
+        self.control = control
+        self.redraw_state()
+
+    def apply_recipe(self, recipe: dict[str, Any]) -> None:
+        """Show recipe progress (``GET /v1/recipe``)."""
+        self.recipe = recipe
+        self.redraw_state()
+
+    def apply_event(self, event: dict[str, Any], *, live: bool) -> None:
+        """Log one recorded event (once, by sequence number); ``live`` ones of some kinds also notify."""
+        seq = int(event.get("seq", 0))
+        if seq <= self.last_seq:
+            return
+        self.last_seq = seq
+        kind, message = str(event.get("kind", "?")), str(event.get("message", ""))
+        stamp = time.strftime("%H:%M:%S", time.localtime(float(event.get("t") or 0.0)))
+        style = {"trip": "bold red", "refusal": "yellow", "state": "cyan", "control": "magenta"}.get(kind, "")
+        line = Text.assemble((f"{stamp} ", "dim"), (f"{kind:<8} ", style), (f"{event.get('source', '')}: ", "dim"),
+                             message)
+        self.main_screen.query_one("#events", RichLog).write(line)
+        severity = NOTIFY_KINDS.get(kind)
+        if live and severity is not None:
+            self.notify(message, title=kind, severity=severity,  # type: ignore[arg-type]
+                        timeout=10.0 if kind == "trip" else 5.0, markup=False)
+
+    # ------------------------------------------------------------------ banners and the top bar
+    def show_offline(self, reason: str | None) -> None:
+        """Show (or with None hide) the banner saying the service is unavailable and we retry."""
+        self.online = reason is None
+        banner = self.main_screen.query_one("#offline", Static)
+        if reason is not None:
+            banner.update(Text(f"service unavailable — retrying ({self.link.socket_path}): {reason}"))
+        banner.set_class(reason is not None, "shown")
+        self.redraw_top()
+
+    def show_trip(self, status: dict[str, Any]) -> None:
+        """The persistent trip banner: first cause and what to do, while the controller is TRIPPED."""
+        tripped = status.get("state") == "TRIPPED"
+        banner = self.main_screen.query_one("#trip", Static)
+        if tripped:
+            node = status.get("node_first_fault")
+            node_text = f" (node first fault: {node})" if node and node != "NONE" else ""
+            banner.update(Text.assemble(
+                ("⚠ TRIPPED — first cause: ", "bold"), (str(status.get("trip_cause") or "unknown"), "bold"),
+                node_text, "\nWhat to do: wait until both drives stand still, remove the cause, then press r to reset "
+                "and a to arm again (docs/safety.md, “How to recover”).",
+            ))
+        banner.set_class(tripped, "shown")
+
+    def redraw_state(self) -> None:
+        """The controller panel and the top bar."""
+        panel = self.main_screen.query_one("#state", StatePanel)
+        panel.show(self.status, self.control, self.link.holds_control, self.recipe)
+        self.redraw_top()
+
+    def redraw_top(self) -> None:
+        """State, control and connection in one line."""
+        state = str(self.status.get("state", "—"))
+        holder = "you" if self.link.holds_control else (self.control.get("holder") or "nobody")
+        where = "online" if self.online else "OFFLINE"
+        text = Text.assemble(("millctl ", "bold"), (f" {state} ", state_style(state)), ("  control ", "dim"),
+                             holder, ("  service ", "dim"), (where, "green" if self.online else "bold red"),
+                             (f" {self.link.socket_path}", "dim"), ("  (simulated mill)" if self.sim else "", "cyan"))
+        self.main_screen.query_one("#topbar", Static).update(text, layout=False)
+
+
+__all__ = ["NOTIFY_KINDS", "MillView"]

@@ -1,0 +1,79 @@
+"""Frozen service answers for pictures that must not change between runs: an envelope, statuses, events, a lease."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from millctl.config import load_config
+from millctl.config.loader import packaged_file
+from millctl.safety import Envelope
+
+SOCKET = "/run/millctl/test.sock"
+T0_UNIX = 1_790_000_000.0
+"""A fixed wall-clock time for the events (shown in UTC by the snapshot test)."""
+
+
+def envelope_answer(points: int = 161) -> dict[str, Any]:
+    """What ``GET /v1/envelope`` answers for the packaged config (Set A, paper eq. 9, margin 5 %)."""
+    env = Envelope.from_config(load_config(packaged_file("mill.toml")).config)
+    w_v = np.linspace(0.0, env.vibration_max_rpm, points)
+    limit, law, every = env.omega_r_limit_rpm(w_v), env.law_limit_rpm(w_v), env.every_cycle(w_v)
+    return {
+        "law": env.law.value, "description": env.description, "margin": env.margin,
+        "rotary_max_rpm": env.rotary_max_rpm, "vibration_max_rpm": env.vibration_max_rpm,
+        "furnace_min_c": env.furnace_min_c, "furnace_max_c": env.furnace_max_c,
+        "max_heating_rate_c_per_min": env.max_heating_rate_c_per_min,
+        "points": [{"omega_v_rpm": float(w_v[i]), "omega_r_limit_rpm": float(limit[i]),
+                    "law_limit_rpm": float(law[i]), "law_is_every_cycle": bool(every[i])} for i in range(points)],
+    }
+
+
+def link(age_s: float, frames: int, errors: int = 0) -> dict[str, Any]:
+    """One frame kind's health."""
+    return {"age_s": age_s, "stale_after_s": 1.0, "stale": age_s > 1.0, "frames": frames,
+            "e2e": {"ok": frames - errors, "wrong-sequence": errors} if errors else {"ok": frames},
+            "e2e_score": errors}
+
+
+def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> dict[str, Any]:
+    """The i-th of a run near the paper's operating point: ramping up to ω_r 180, ω_v 800 rpm, furnace to 600 °C."""
+    ramp = min(i / 30.0, 1.0)
+    rot, vib = 180.0 * ramp, 800.0 * min(i / 20.0, 1.0)
+    wobble = 1.5 * math.sin(i)
+    return {
+        "time_s": 100.0 + 0.25 * i, "state": state, "trip_cause": trip_cause, "node_state": state,
+        "node_faults": ["STALL"] if trip_cause else [], "node_first_fault": "STALL" if trip_cause else "NONE",
+        "refused_setpoints": 0, "last_refusal": "NONE",
+        "setpoint_rotary_rpm": rot, "setpoint_vibration_rpm": vib,
+        "target_rotary_rpm": 180.0, "target_vibration_rpm": 800.0, "ramp_remaining_s": max(7.5 - 0.25 * i, 0.0),
+        "measured_rotary_rpm": max(rot + wobble, 0.0), "measured_vibration_rpm": max(vib - wobble, 0.0),
+        "rotary_torque_nm": 0.0, "vibration_torque_nm": 0.1,
+        "furnace_target_c": 600.0, "furnace_setpoint_c": 25.0 + 2.0 * i, "furnace_temp_c": 25.0 + 1.8 * i,
+        "heater_pct": 62.0, "heater_on": True,
+        "law": "paper-eq9", "margin": 0.05, "limit_rotary_rpm": 189.97, "margin_rpm": 189.97 - rot - wobble,
+        "law_is_every_cycle": vib < 300.0,
+        "detached": True, "theta_d_deg": 131.4, "impact_rate_hz": 26.7, "impact_energy_mj": 0.42, "shear_kpa": 8.1,
+        "link": {"NodeStatus": link(0.03, 900), "DriveTelemetry": link(0.01, 2250),
+                 "FurnaceTelemetry": link(1.6, 450), "PhysicsTelemetry": link(9.0, 90, errors=2)},
+        "invalid_frames": 0,
+    }
+
+
+CONTROL = {"held": True, "holder": "api:cli@bench", "expires_in_s": 21.0, "expired": False}
+RECIPE = {"active": True, "progress": {
+    "run_id": "20260101T000000Z-demo", "recipe": "demo", "recipe_file": "config/recipes/demo.toml", "state": "RUNNING",
+    "reason": "", "step": 3, "steps": 6, "kind": "ramp", "elapsed_s": 20.0, "step_elapsed_s": 2.0,
+    "remaining_s": 95.0, "record": "var/records/runs/x.jsonl"}}
+EVENTS = [
+    {"seq": 1, "t": T0_UNIX, "kind": "service", "source": "service", "message": "service started (pid 4242)"},
+    {"seq": 2, "t": T0_UNIX + 2, "kind": "control", "source": "api:cli@bench", "message": "control taken by cli"},
+    {"seq": 3, "t": T0_UNIX + 3, "kind": "state", "source": "controller", "message": "DISABLED → ARMED: node ARMED"},
+    {"seq": 4, "t": T0_UNIX + 4, "kind": "command", "source": "api:cli@bench",
+     "message": "ramp to ω_r = 180.0 rpm, ω_v = 800.0 rpm over 12.1 s"},
+    {"seq": 5, "t": T0_UNIX + 5, "kind": "refusal", "source": "api:cli@bench",
+     "message": "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm"},
+]
+ENVELOPE = envelope_answer()

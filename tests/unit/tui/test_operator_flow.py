@@ -1,0 +1,115 @@
+"""The operator's path through the TUI against a real service with the simulated node.
+
+arm → set speeds → an over-limit value refused in the dialog with the
+interlock's reason and nothing sent → a valid set → quitting while running
+asks first → an injected vibration stall trips → the banner shows the first
+cause and what to do → reset; and E-stop from inside a dialog.
+"""
+
+from __future__ import annotations
+
+import signal
+from typing import Any
+
+from textual.widgets import Input, Static
+
+from millctl.tui import MillApp
+from millctl.tui.modals import ConfirmModal, SetpointsModal
+from tests.unit.tui.conftest import Service, until
+
+SIZE = (120, 40)
+
+
+def text_of(app: MillApp, selector: str) -> str:
+    """The plain text a Static shows."""
+    return str(app.query_one(selector, Static).content)
+
+
+def speed_requests(service: Service) -> list[dict[str, Any]]:
+    """Every speed request that reached the controller, accepted (``command``) or refused (``refusal``)."""
+    with service.client() as client:
+        events = client.events(after=0, limit=2000)["events"]
+    return [e for e in events if e["kind"] in ("command", "refusal") and "rotary_rpm" in (e.get("data") or {})]
+
+
+def status_of(service: Service) -> dict[str, Any]:
+    """The service's status, read directly."""
+    with service.client() as client:
+        return client.status()
+
+
+async def fill(app: MillApp, rot: str, vib: str) -> SetpointsModal:
+    """Type into the open setpoint dialog."""
+    modal = app.screen
+    assert isinstance(modal, SetpointsModal)
+    modal.query_one("#vib", Input).value = vib
+    modal.query_one("#rot", Input).value = rot
+    return modal
+
+
+async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> None:
+    app = MillApp(str(fault_service.socket))
+    async with app.run_test(size=SIZE, notifications=True) as pilot:
+        await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
+        await pilot.press("a")
+        await until(pilot, lambda: app.status.get("state") == "ARMED", "ARMED")
+        with fault_service.client() as client:
+            assert "tui" in str(client.control_state()["holder"])
+
+        # an over-limit point: refused in the dialog with the interlock's reason; nothing sent
+        await pilot.press("s")
+        await until(pilot, lambda: isinstance(app.screen, SetpointsModal), "the setpoint dialog")
+        modal = await fill(app, "250", "800")
+        await until(pilot, lambda: "190.0 rpm" in str(modal.query_one("#limit", Static).content), "the live limit")
+        await pilot.press("enter")
+        await until(pilot, lambda: "refused" in str(modal.query_one("#verdict", Static).content), "the refusal")
+        verdict = str(modal.query_one("#verdict", Static).content)
+        assert "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm" in verdict
+        assert app.screen is modal
+        assert speed_requests(fault_service) == []
+        assert status_of(fault_service)["target_rotary_rpm"] == 0.0
+
+        # a point inside is sent
+        await fill(app, "20", "300")
+        await pilot.press("enter")
+        await until(pilot, lambda: not isinstance(app.screen, SetpointsModal), "the dialog to close")
+        await until(pilot, lambda: app.status.get("target_vibration_rpm") == 300.0, "the new target")
+        await until(pilot, lambda: (app.status.get("measured_vibration_rpm") or 0.0) > 250.0, "ω_v near 300 rpm")
+
+        # quitting while the mill runs asks first; "no" keeps the TUI
+        await pilot.press("q")
+        await until(pilot, lambda: isinstance(app.screen, ConfirmModal), "the quit question")
+        await pilot.press("n")
+        await until(pilot, lambda: not isinstance(app.screen, ConfirmModal), "the question to close")
+        assert app.is_running
+
+        # a vibration stall trips; the banner shows the first cause and the way out
+        fault_service.proc.send_signal(signal.SIGUSR1)  # a SimFault VIB_STALL frame on the service's bus
+        await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the trip", timeout_s=30.0)
+        banner = app.query_one("#trip", Static)
+        assert banner.has_class("shown")
+        cause = status_of(fault_service)["trip_cause"]
+        assert cause and cause in text_of(app, "#trip")
+        assert "STALL" in text_of(app, "#trip")
+        assert "press r to reset" in text_of(app, "#trip")
+
+        # remove the cause, wait for standstill, reset
+        fault_service.proc.send_signal(signal.SIGUSR2)  # SimFault CLEAR
+        await until(pilot, lambda: app.status.get("measured_rotary_rpm") == 0.0
+                    and app.status.get("measured_vibration_rpm") == 0.0, "standstill", timeout_s=30.0)
+        await pilot.press("r")
+        await until(pilot, lambda: app.status.get("state") == "DISABLED", "DISABLED after the reset")
+        assert not app.query_one("#trip", Static).has_class("shown")
+        assert app.is_running
+
+
+async def test_estop_works_inside_a_dialog(fault_service: Service) -> None:
+    app = MillApp(str(fault_service.socket))
+    async with app.run_test(size=SIZE, notifications=True) as pilot:
+        await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
+        await pilot.press("s")
+        await until(pilot, lambda: isinstance(app.screen, SetpointsModal), "the setpoint dialog")
+        await pilot.press("ctrl+x")
+        await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the E-stop trip")
+        assert "E-stop" in status_of(fault_service)["trip_cause"]
+        assert "first cause" in text_of(app, "#trip")
