@@ -3,7 +3,7 @@
 Examples::
 
     python -m bench                                   # everything (a few minutes), report on stdout
-    python -m bench --quick                           # smoke run, well under a minute without the hil tier
+    python -m bench --quick                           # smoke run, well under a minute (no hil tier)
     python -m bench --json results.json --write-docs  # full run, then docs/benchmarks.md and docs/img/
     python -m bench --from-json results.json --write-docs   # regenerate the document only
 
@@ -38,19 +38,28 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser."""
     p = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="fewer scenes, sweep points and trials")
-    p.add_argument("--only", default=",".join(PIECES), help=f"comma-separated subset of {', '.join(PIECES)}")
+    p.add_argument(
+        "--only",
+        help=f"comma-separated subset of {', '.join(PIECES)} (default: all; with --quick all but safety, "
+        "which runs the hil tier and takes about a minute on its own)",
+    )
     p.add_argument("--json", metavar="FILE", help="write the results here (for comparison across commits)")
     p.add_argument("--plots", metavar="DIR", help="write work-precision.png here (needs the plot extra)")
     p.add_argument("--write-docs", action="store_true", help=f"write {DOCS.relative_to(ROOT)} and docs/img/")
     p.add_argument("--from-json", metavar="FILE", help="do not run: render a saved results file")
     p.add_argument("--lhs", type=int, help="number of Latin-hypercube scenes (default 4 quick, 32 full)")
-    p.add_argument("--trials", type=int, help="hil trials (default 1 quick, 6 full)")
+    p.add_argument("--trials", type=int, help="hil trials (default 1 quick, 5 full)")
     return p
 
 
 def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
     """Run the selected pieces and return the results dict."""
-    only = [x.strip() for x in args.only.split(",") if x.strip()]
+    if args.only is None:
+        only = [p for p in PIECES if not (args.quick and p == "safety")]
+        if args.quick:
+            _progress("--quick skips the safety piece (hil tier, ~1 min); add --only safety to run it")
+    else:
+        only = [x.strip() for x in args.only.split(",") if x.strip()]
     unknown = set(only) - set(PIECES)
     if unknown:
         raise SystemExit(f"unknown --only piece(s) {sorted(unknown)}; choose from {', '.join(PIECES)}")

@@ -115,6 +115,6 @@ def bus_load(window_s: float) -> dict[str, Any]:
 
 
 def run(quick: bool, trials: int | None = None, progress: Callable[[str], None] = print) -> dict[str, Any]:
-    """Item 3 end to end (``trials`` defaults to 1 quick, 6 full)."""
-    n = trials if trials is not None else (1 if quick else 6)
+    """Item 3 end to end (``trials`` defaults to 1 quick, 5 full)."""
+    n = trials if trials is not None else (1 if quick else 5)
     return {"hil": hil_trials(n, progress=progress), "bus_load": bus_load(3.0 if quick else 10.0)}
