@@ -268,7 +268,7 @@ def _safety(st: dict[str, Any]) -> list[str]:
             "| scenario | what | n | median | p99 | max | bound | over its bound |",
             "|---|---|---|---|---|---|---|---|",
         ]
-        bounds = {}
+        bounds: dict[str, tuple[float, float]] = {}
         for r in hil["records"]:
             lo, hi = bounds.get(r["name"], (math.inf, -math.inf))
             bounds[r["name"]] = (min(lo, r["bound_s"]), max(hi, r["bound_s"]))
