@@ -23,11 +23,11 @@ from typing import Any
 
 from bench import levels, node_budget, plots, report, safety_timing, work_precision
 from bench.common import corrected_model, loadavg_now, machine
+from bench.options import PIECES, add_options
 from bench.scenes import scene_set
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs" / "benchmarks.md"
-PIECES = ("work-precision", "levels", "node", "safety")
 
 
 def _progress(message: str) -> None:
@@ -36,20 +36,9 @@ def _progress(message: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser."""
-    p = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
-    p.add_argument("--quick", action="store_true", help="fewer scenes, sweep points and trials")
-    p.add_argument(
-        "--only",
-        help=f"comma-separated subset of {', '.join(PIECES)} (default: all; with --quick all but safety, "
-        "which runs the hil tier and takes about a minute on its own)",
-    )
-    p.add_argument("--json", metavar="FILE", help="write the results here (for comparison across commits)")
-    p.add_argument("--plots", metavar="DIR", help="write work-precision.png here (needs the plot extra)")
-    p.add_argument("--write-docs", action="store_true", help=f"write {DOCS.relative_to(ROOT)} and docs/img/")
-    p.add_argument("--from-json", metavar="FILE", help="do not run: render a saved results file")
-    p.add_argument("--lhs", type=int, help="number of Latin-hypercube scenes (default 4 quick, 32 full)")
-    p.add_argument("--trials", type=int, help="hil trials (default 1 quick, 5 full)")
-    return p
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.splitlines()[0])
+    add_options(parser)
+    return parser
 
 
 def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
@@ -106,7 +95,11 @@ def _plot(res: dict[str, Any], directory: Path) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    return run_parsed(build_parser().parse_args(argv), argv)
+
+
+def run_parsed(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    """Run with parsed options (``argv`` only labels the results); also the handler of ``millctl bench``."""
     if args.from_json:
         res = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
     else:

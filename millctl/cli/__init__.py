@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "millctl.cli.service_cmd",
     "millctl.cli.client_cmd",
     "millctl.cli.tui_cmd",
+    "millctl.cli.bench_cmd",
 )
 """Command modules, in the order ``--help`` lists them."""
 
