@@ -105,3 +105,24 @@ def test_cli_renders_a_saved_results_file(tmp_path, capsys) -> None:  # type: ig
     path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine()}))
     assert cli.main(["--from-json", str(path)]) == 0
     assert capsys.readouterr().out.startswith("# Benchmarks")
+
+
+def test_safety_piece_says_why_it_did_not_run(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from bench import safety_timing
+
+    monkeypatch.setattr(safety_timing, "SUITE", tmp_path / "absent.py")
+    monkeypatch.setattr(safety_timing, "ROOT", tmp_path)
+    assert "skipped" in safety_timing.hil_trials(1, progress=lambda _: None)
+    computed = {"periodic_load": 0.03, "total_load": 0.04, "event_rate_hz": 10.0, "target_load": 0.15, "frames": []}
+    st = {"hil": {"skipped": "not there"}, "bus_load": {"computed": computed, "skipped": "no netns"}}
+    text = report.render({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine(), "safety_timing": st})
+    assert "Not measured: not there" in text and "Measured: not run (no netns)" in text
+
+
+def test_millctl_bench_is_an_alias(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from millctl.cli import main as millctl_main
+
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine()}))
+    assert millctl_main(["bench", "--from-json", str(path)]) == 0
+    assert capsys.readouterr().out.startswith("# Benchmarks")
