@@ -197,8 +197,8 @@ class StatePanel(Static):
             active = recipe.get("active")
             text.append_text(Text.assemble(
                 "\n", ("recipe ", "dim"), (str(progress.get("recipe", "?")), "bold"),
-                f"  {progress.get('state', '?')}" + ("" if active else " (last run)")
-                + (" — p resumes" if progress.get("state") in ("PAUSED", "HELD") else ""), "\n",
+                f"  {progress.get('state', '?')}"
+                + (" — p resumes" if active and progress.get("state") in ("PAUSED", "HELD") else ""), "\n",
                 ("step ", "dim"), f"{progress.get('step', 0)}/{progress.get('steps', 0)} {progress.get('kind') or ''}",
                 ("  left ", "dim"), duration(progress.get("remaining_s")),
             ))

@@ -24,6 +24,7 @@ TrendPanel { height: 1fr; }
 .dialog { width: 84; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
 SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
 .dialog-title { text-style: bold; margin-bottom: 1; }
+.dialog > Static { width: 100%; height: auto; }
 .field { height: 3; }
 .field-label { width: 28; padding: 1 1 0 0; }
 .field Input { width: 1fr; }

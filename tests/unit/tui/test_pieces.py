@@ -1,0 +1,71 @@
+"""The TUI's pure pieces: the envelope plot, the setpoint parser, and the operator's error messages."""
+
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from millctl.client import ControlHeld, InterlockRefusal, ServiceUnavailable, raise_for_error
+from millctl.tui.format import duration, e2e_errors
+from millctl.tui.link import describe
+from millctl.tui.modals import InputError, parse_request
+from millctl.tui.plot import Curve, render_plot
+from tests.unit.tui.frozen import ENVELOPE
+
+CURVE = Curve.from_envelope(ENVELOPE)
+
+
+def test_the_plot_marks_the_operating_point_and_colours_the_law() -> None:
+    inside = render_plot(CURVE, 60, 12, point=(800.0, 150.0))
+    assert "●" in inside.plain
+    marker = inside.plain.index("●")
+    styles = {str(span.style) for span in inside.spans if span.start <= marker < span.end}
+    assert "bold red" not in styles
+    assert any(str(span.style) == "green" for span in inside.spans)
+    assert any(str(span.style) == "yellow" for span in inside.spans)  # eq. 9 above ω_v ≈ 315 rpm
+
+    outside = render_plot(CURVE, 60, 12, point=(800.0, 240.0))
+    marker = outside.plain.index("●")
+    assert any(str(span.style) == "bold red" for span in outside.spans if span.start <= marker < span.end)
+    assert len(outside.plain.splitlines()) == 12
+
+
+def test_the_curve_is_the_services() -> None:
+    grid = ENVELOPE["points"][40]
+    assert CURVE.limit_at(grid["omega_v_rpm"]) == pytest.approx(grid["omega_r_limit_rpm"])
+    assert CURVE.limit_at(800.0) == pytest.approx(190.0, abs=0.2)  # docs/safety.md: 0.95 × 200.0 rpm
+    assert CURVE.every_cycle_at(100.0) and not CURVE.every_cycle_at(800.0)
+
+
+def test_setpoint_fields() -> None:
+    request = parse_request(" 180 ", "800", "")
+    assert (request.rotary_rpm, request.vibration_rpm, request.furnace) == (180.0, 800.0, False)
+    assert parse_request("0", "0", "off").furnace and parse_request("0", "0", "off").temp_c is None
+    assert parse_request("0", "0", "600").temp_c == 600.0
+    for bad in (("x", "800", ""), ("180", "nan", ""), ("180", "800", "hot")):
+        with pytest.raises(InputError):
+            parse_request(*bad)
+
+
+def _error(status: int, body: dict[str, object]) -> Exception:
+    with pytest.raises(Exception) as raised:
+        raise_for_error(httpx.Response(status, json=body), "service socket /x")
+    return raised.value
+
+
+def test_operator_messages_carry_the_services_reason() -> None:
+    refusal = _error(409, {"code": "interlock_refused", "message": "refused", "refusals": [
+        {"quantity": "omega_r", "value": 250.0, "limit": 190.0, "unit": "rpm",
+         "reason": "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm"}]})
+    assert isinstance(refusal, InterlockRefusal)
+    message, severity = describe(refusal)
+    assert "exceeds the limit 190.0 rpm" in message and severity == "error"
+    held = _error(423, {"code": "control_held", "message": "held", "holder": "api:cli@bench"})
+    assert isinstance(held, ControlHeld)
+    assert "api:cli@bench holds control" in describe(held)[0]
+    assert "service unavailable" in describe(ServiceUnavailable("no service"))[0]
+
+
+def test_formatting() -> None:
+    assert duration(95.0) == "1:35" and duration(3725.0) == "1:02:05" and duration(None) == "—"
+    assert e2e_errors({"ok": 10, "ok-some-lost": 2, "wrong-sequence": 1, "repeated": 2}) == 3
