@@ -21,12 +21,12 @@ too). From the K samples:
 * ``mean_shear_pa``: eq. 25, μ·p_av, averaged over the pinned arc (corrected,
   N = m(r0 ω_r² − g sin θ) ≥ 0 at 16 angles) or at the paper's N_c = m ω_r² r0.
 
-Cost (Set A, CPython, shared and loaded 2-core box): 0.4–1 ms per cam phase,
-1.5–5 ms per call with K = 4; ≈ 0.1 ms when no phase can detach (the start-angle
-test proves it); up to 15–50 ms at a few rpm, where the rod rides through many
-cam cycles before its first chance. The node calls it at ~2 Hz or once per
-revolution, not every 10 ms tick, or through :class:`SummaryCache` (1 rpm grid,
-microseconds on a hit). Below ``MIN_OMEGA_R_RAD_S`` (1 rpm) the vial is treated
+Cost: milliseconds per call, roughly K times one exact detachment-and-flight
+search, less where no phase can detach and more at a few rpm, where the rod
+rides through many cam cycles before its first chance (measured by
+``python -m bench``, docs/benchmarks.md §2). That is more than a 10 ms node
+tick, so the node runs it on a worker thread when the speeds have moved, and
+:class:`SummaryCache` answers repeated queries on a 1 rpm grid. Below ``MIN_OMEGA_R_RAD_S`` (1 rpm) the vial is treated
 as standing still: rods pinned, no impacts, no shear.
 
 At a few rpm the model predicts micro-hops (the rod leaves just above the
