@@ -4,9 +4,11 @@ The hil scenarios (tests/hil/test_scenarios.py) measure each safety reaction on
 a bus capture and write ``HIL-TIMING`` records to ``$MILLCTL_HIL_TIMINGS``.
 Here they are run ``trials`` times on udp_multicast inside the private network
 namespace (``tests/hil/in_netns``), one pytest process per trial, and the
-records are reduced to median, p99 and max against each scenario's bound. The
-records are kept whether or not the scenario's own assertion passed: a bound
-exceeded is a finding, reported with the pytest outcome of each trial.
+records are reduced to median, p99 and max against each scenario's bound. A
+scenario writes its record before its own assertion on the bound, so a bound
+exceeded is still counted (a finding); a scenario that fails before it measures
+leaves no record, which lowers n. Each trial's pytest outcome and failure lines
+are kept with the results.
 
 The bus load is measured by :mod:`bench.capture` in the same namespace and
 compared with ``millctl bus load --json``.
@@ -57,8 +59,10 @@ def hil_trials(trials: int, keyword: str = TIMING_SCENARIOS, progress: Callable[
         for k in range(trials):
             start = time.perf_counter()
             done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
-            tail = done.stdout.strip().splitlines()[-1:] or [""]
-            outcomes.append({"trial": k, "returncode": done.returncode, "summary": tail[0]})
+            lines = done.stdout.strip().splitlines()
+            tail = lines[-1:] or [""]
+            failed = [line[:300] for line in lines if line.startswith(("FAILED", "ERROR"))]
+            outcomes.append({"trial": k, "returncode": done.returncode, "summary": tail[0], "failed": failed})
             progress(f"hil trial {k + 1}/{trials}: {tail[0]} ({time.perf_counter() - start:.0f} s)")
         records = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     by_name: dict[str, list[dict[str, Any]]] = {}
