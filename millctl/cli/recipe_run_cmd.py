@@ -156,33 +156,52 @@ def _run(args: argparse.Namespace) -> int:
     return _summary(args, final)
 
 
+class _Interrupts:
+    """Counts Ctrl+C presses with a signal handler, so that none is lost while a request is in flight."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __enter__(self) -> _Interrupts:
+        self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        signal.signal(signal.SIGINT, self._previous)
+
+    def _on_sigint(self, signum: int, frame: object) -> None:
+        self.count += 1
+
+
 def _follow(client: Any) -> dict[str, Any]:
     """Show progress until the run ends; Ctrl+C once pauses now, twice aborts."""
     from rich.live import Live
 
-    interrupts = 0
+    from millctl.client import ServiceRefused
+
+    acted = 0
     last_renew = time.monotonic()
-    progress: dict[str, Any] = {}
-    with Live(console=stderr_console(), refresh_per_second=4, transient=False) as live:
+    with _Interrupts() as interrupts, Live(console=stderr_console(), refresh_per_second=4) as live:
         while True:
-            try:
-                progress = client.recipe()["progress"] or {}
-                status = client.status()
-                live.update(_panel(progress, status))
-                if progress.get("state") in ("DONE", "ABORTED", "FAILED"):
-                    return progress
-                if time.monotonic() - last_renew > LEASE_RENEW_S:
-                    client.take_control()
-                    last_renew = time.monotonic()
-                time.sleep(POLL_S)
-            except KeyboardInterrupt:
-                interrupts += 1
-                if interrupts == 1:
-                    client.recipe_pause(now=True)
-                    live.console.print("[yellow]paused[/] — `millctl recipe resume` continues; Ctrl+C again aborts")
-                else:
-                    client.recipe_abort()
-                    live.console.print("[red]aborting[/]: controlled stop")
+            if interrupts.count > acted:
+                acted = interrupts.count
+                try:
+                    if acted == 1:
+                        client.recipe_pause(now=True)
+                        live.console.print("[yellow]paused[/] — `millctl recipe resume` continues; Ctrl+C again aborts")
+                    elif acted == 2:
+                        client.recipe_abort()
+                        live.console.print("[red]aborting[/]: controlled stop")
+                except ServiceRefused as refused:  # e.g. already paused by a pause step, or already stopping
+                    live.console.print(f"[yellow]{refused}[/]")
+            progress: dict[str, Any] = client.recipe()["progress"] or {}
+            live.update(_panel(progress, client.status()))
+            if progress.get("state") in ("DONE", "ABORTED", "FAILED"):
+                return progress
+            if time.monotonic() - last_renew > LEASE_RENEW_S:
+                client.take_control()
+                last_renew = time.monotonic()
+            time.sleep(POLL_S)
 
 
 def _panel(progress: dict[str, Any], status: dict[str, Any]) -> Any:
