@@ -55,6 +55,7 @@ def _header(res: dict[str, Any]) -> list[str]:
 
 
 def _headline(wp: dict[str, Any], command: str) -> list[str]:
+    """The headline ratios, on the time error first, then on the other two error measures."""
     h = wp["headline"]["time_s"]
     out = ["## Headline ratios", "", f"Reproduce with `{command}`; on the median collision-time error:", ""]
     names = {
@@ -81,6 +82,32 @@ def _headline(wp: dict[str, Any], command: str) -> list[str]:
         )
     else:
         out.append("- Exact engine vs solve_ivp: no common error level on the measured curves.")
+    for key, what in (("point_m", "contact-point error"), ("energy_rel", "relative energy error")):
+        other = wp["headline"].get(key, {})
+        parts = [f"`{b}` {g(other[b]['at_most_accurate']['speedup'])}×" for b in names if b in other]
+        if "ivp" in other:
+            parts.append(f"solve_ivp at equal error {g(other['ivp']['speedup_median'])}× (median)")
+        if parts:
+            out.append(f"- The same ratios on the median {what}: " + ", ".join(parts) + ".")
+    exact = [x for x in wp["summary"] if x["method"] == "exact"]
+    if exact:
+        cheapest = min(exact, key=lambda x: x["seconds_per_event"])
+        costs = [x["seconds_per_event"] for x in exact]
+        out.append(
+            "- The exact engine's time per event "
+            + (
+                "hardly depends on its tolerance (bracketing dominates, not brentq)"
+                if max(costs) < 1.5 * min(costs)
+                else "depends on its tolerance"
+            )
+            + f": {ms(min(costs))}–{ms(max(costs))} ms over its sweep; its cheapest setting in this run was "
+            f"{cheapest['setting']}"
+            + (
+                ", which is also its most accurate, so every ratio above is taken against that one point."
+                if cheapest["setting"] == "tol=4ulp"
+                else "."
+            )
+        )
     out += [
         "",
         "How: each method's (time per event, median error) points are reduced to their Pareto front; the "
