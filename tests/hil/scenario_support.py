@@ -18,6 +18,7 @@ import contextlib
 import json
 import math
 import os
+import re
 import signal
 import threading
 import time
@@ -29,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import can
 import pytest
 
-from millctl.client import Client
+from millctl.client import DEFAULT_TIMEOUT_S, Client
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.config.models import Bus, MillConfig
@@ -173,10 +174,30 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
+VM_SCALED_KEYS = ("watchdog_timeout_s", "min_stale_s", "setpoint_refresh_s")
+"""Timeouts of the config multiplied by the VM's factor there: Python ~10x slower cannot meet the host's."""
+
+
+def _scale_keys(text: str, factor: float) -> str:
+    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor``."""
+    for key in VM_SCALED_KEYS:
+        text, found = re.subn(
+            rf"^({key}\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) * factor:g}", text, flags=re.MULTILINE
+        )
+        assert found == 1, f"{key} is not in the packaged mill.toml"
+    return text
+
+
 def write_config(directory: Path, transport: Transport) -> Path:
-    """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``."""
+    """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
+
+    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (10): the VM
+    checks behaviour and frame flow, the host the tight timing.
+    """
     text = packaged_file("mill.toml").read_text(encoding="utf-8")
     head = text.partition("[bus]")[0]
+    if bound_scale() > 1.0:
+        head = _scale_keys(head, bound_scale())
     sections = {
         "bus": transport.bus_config_fields(),
         "service": {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")},
@@ -350,7 +371,7 @@ class Mill:
         self.probe = Probe(self.config.bus, self.codec) if self.separate else None
         self.node: subprocess.Popen[bytes] | None = None
         self.service: subprocess.Popen[bytes] | None = None
-        self.client = Client(self.socket_path, name="hil")
+        self.client = Client(self.socket_path, name="hil", timeout_s=transport.timeout(DEFAULT_TIMEOUT_S))
 
     # -- processes
     def start_node(self) -> subprocess.Popen[bytes]:

@@ -153,8 +153,8 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
         measured_s = time.time() - t_stop  # through the API: an upper bound of the stop's duration
     else:
         probe = mill.probe
-        stop = probe.wait_first(is_command(CommandCode.STOP), t_stop - 0.5, 5.0, "the STOP command")
-        done = probe.wait_first(is_status(NodeState.ARMED), stop.t, 5.0, "the node ARMED after the stop")
+        stop = probe.wait_first(is_command(CommandCode.STOP), t_stop - 0.5, mill.timeout(5.0), "the STOP command")
+        done = probe.wait_first(is_status(NodeState.ARMED), stop.t, mill.timeout(5.0), "the node ARMED after the stop")
         measured_s = done.t - stop.t
         assert mill.outside_envelope(drive_frames(probe, t_begin)) == []
     bound_s = stop_duration_bound_s(mill, *LOW_RPM)
