@@ -84,11 +84,17 @@ def legacy_first_contact(
             k = int(hits[0]) + 1
             pair = next(p for p, sep in seps.items() if sep[k] <= 0.0)
             t, i, j, x, y, v_n, v_t, speed = _averaged(scene, lab, seps, pair, ts, k, interpolate)
-            partner = flights[j] if j >= 0 else None
-            backed = j < 0 or partner is None or partner.t0_s >= t
+            # m_eff = m when either body is held by the wall (the wall itself, or a pinned rod), m/2 when
+            # both rods fly; the pair's order says nothing about which of the two is the one in flight
+            backed = j < 0 or not (_flying(flights[i], t) and _flying(flights[j], t))
             return ContactRow(t, i, j, x, y, v_n, v_t, speed, backed)
         k0 += _CHUNK
     return None
+
+
+def _flying(flight: FlightState | None, t_s: float) -> bool:
+    """True when a rod has left the wall by time t_s (s)."""
+    return flight is not None and flight.t0_s < t_s
 
 
 def _separations(
