@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 from textual.pilot import Pilot
+from textual.widgets import RichLog
 
 from tests.unit.service.conftest import (
     REPO,
@@ -76,5 +77,8 @@ async def until(pilot: Pilot[None], condition: Callable[[], bool], what: str, ti
             return
         await pilot.pause(0.05)
     app = pilot.app
-    shown = f"state {getattr(app, 'status', {}).get('state')}, online {getattr(app, 'online', None)}"
-    pytest.fail(f"timed out waiting for {what} (the TUI shows {shown})")
+    status = getattr(app, "status", {})
+    shown = f"state {status.get('state')} {status.get('trip_cause') or ''}, online {getattr(app, 'online', None)}"
+    log = app.query("#events").results(RichLog)
+    recent = [strip.text for widget in log for strip in widget.lines][-6:]
+    pytest.fail(f"timed out waiting for {what} (the TUI shows {shown}; its last events: {recent})")
