@@ -35,16 +35,16 @@ def default_recipe() -> str:
 class Commanding(MillView):
     """The main screen's commands."""
 
-    def send(self, what: str, call: Call) -> None:
-        """Send a command in a worker (taking control first)."""
-        self.run_worker(self._send(what, call), group="command", exit_on_error=False)
+    def send(self, what: str, call: Call, *, take: bool = True) -> None:
+        """Send a command in a worker (taking control first, unless ``take`` is false)."""
+        self.run_worker(self._send(what, call, take=take), group="command", exit_on_error=False)
 
-    async def _send(self, what: str, call: Call) -> bool:
+    async def _send(self, what: str, call: Call, *, take: bool = True) -> bool:
         try:
-            result = await self.link.command(call)
+            result = await (self.link.command(call) if take else call(self.link.client))
         except LINK_ERRORS as exc:
             message, severity = describe(exc)
-            self.notify(message, title=what, severity=severity, timeout=8.0, markup=False)  # type: ignore[arg-type]
+            self.notify(message, title=what, severity=severity, timeout=8.0, markup=False)
             self.redraw_state()
             return False
         ramp = result.get("duration_s")
@@ -141,11 +141,11 @@ class Commanding(MillView):
 
     def action_take(self) -> None:
         """Take the control lease."""
-        self.send("take control", lambda c: c.take_control())
+        self.send("take control", lambda c: self.link.take_control(), take=False)
 
     def action_take_force(self) -> None:
-        """Take over another client's expired lease."""
-        self.send("take over control", lambda c: c.take_control(force=True))
+        """Take over another client's expired lease (never a live one: the service refuses that)."""
+        self.send("take over control", lambda c: self.link.take_control(force=True), take=False)
 
     def action_release(self) -> None:
         """Give the control lease back."""

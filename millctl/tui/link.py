@@ -13,6 +13,7 @@ from collections.abc import AsyncGenerator, Awaitable, Callable
 from typing import Any, TypeVar
 
 import httpx
+from textual.notifications import SeverityLevel
 
 from millctl.client import (
     AsyncClient,
@@ -35,7 +36,7 @@ STREAM_SILENCE_S = 5.0
 """With no status for this long the stream is taken for dead and reopened (the service sends one every 0.25 s)."""
 
 
-def describe(exc: BaseException) -> tuple[str, str]:
+def describe(exc: BaseException) -> tuple[str, SeverityLevel]:
     """A one-line message for the operator and a notification severity for an error from the service."""
     if isinstance(exc, InterlockRefusal):
         details = "; ".join(str(r.get("reason", "")) for r in exc.refusals if r.get("reason"))

@@ -15,6 +15,7 @@ from typing import Any
 from rich.text import Text
 from textual.app import App, ComposeResult
 from textual.containers import Horizontal, Vertical
+from textual.notifications import SeverityLevel
 from textual.screen import Screen
 from textual.widgets import Footer, RichLog, Static
 from textual.worker import Worker, WorkerState
@@ -26,8 +27,9 @@ from millctl.tui.styles import CSS
 
 log = logging.getLogger(__name__)
 
-NOTIFY_KINDS = {"trip": "error", "refusal": "warning", "state": "information", "control": "information",
-                "service": "information"}
+NOTIFY_KINDS: dict[str, SeverityLevel] = {
+    "trip": "error", "refusal": "warning", "state": "information", "control": "information", "service": "information",
+}
 """Event kinds shown as notifications when they happen (the log shows every kind), with their severity."""
 
 
@@ -133,8 +135,7 @@ class MillView(App[None]):
         self.main_screen.query_one("#events", RichLog).write(line)
         severity = NOTIFY_KINDS.get(kind)
         if live and severity is not None:
-            self.notify(message, title=kind, severity=severity,  # type: ignore[arg-type]
-                        timeout=10.0 if kind == "trip" else 5.0, markup=False)
+            self.notify(message, title=kind, severity=severity, timeout=10.0 if kind == "trip" else 5.0, markup=False)
 
     # ------------------------------------------------------------------ banners and the top bar
     def show_offline(self, reason: str | None) -> None:

@@ -128,3 +128,21 @@ async def test_estop_works_inside_a_dialog(fault_service: Service) -> None:
         await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the E-stop trip")
         assert "E-stop" in status_of(fault_service)["trip_cause"]
         assert "first cause" in text_of(app, "#trip")
+
+
+async def test_control_held_by_another_client(fault_service: Service) -> None:
+    app = MillApp(str(fault_service.socket))
+    with fault_service.client(name="bench") as other:
+        other.take_control()
+        async with app.run_test(size=SIZE, notifications=True) as pilot:
+            await until(pilot, lambda: "api:bench" in text_of(app, "#state"), "the holder on screen")
+            await pilot.press("a")  # refused: someone else holds control (textual has no public notification list)
+            await until(pilot, lambda: any("holds control" in n.message for n in app._notifications),
+                        "the refusal naming the holder")
+            assert not app.link.holds_control
+            assert status_of(fault_service)["state"] == "DISABLED"
+
+            other.release_control()
+            await pilot.press("a")
+            await until(pilot, lambda: app.status.get("state") == "ARMED", "ARMED once control is free")
+            await until(pilot, lambda: "you (this terminal)" in text_of(app, "#state"), "us as the holder")
