@@ -21,6 +21,19 @@ from textual.screen import Screen
 from millctl.tui.commands import Commanding
 from millctl.tui.follow import Following
 
+ENABLED_IN = {
+    "arm": frozenset({"DISABLED"}),
+    "disarm": frozenset({"ARMED"}),
+    "set": frozenset({"ARMED", "RUNNING"}),
+    "stop": frozenset({"ARMED", "RUNNING", "STOPPING"}),
+    "reset": frozenset({"TRIPPED"}),
+    "recipe_run": frozenset({"DISABLED", "ARMED"}),
+}
+"""Controller states in which a footer command applies; elsewhere its key is greyed out (the palette still offers
+it, and the service refuses it with its reason)."""
+RECIPE_ACTIONS = frozenset({"recipe_pause", "recipe_abort"})
+"""Footer commands that apply only while a recipe is active."""
+
 
 class MillApp(Commanding, Following):
     """The operator terminal UI for one service socket."""
@@ -43,6 +56,14 @@ class MillApp(Commanding, Following):
         """Follow the service (unless fed by hand: ``live=False``)."""
         if self.live:
             self.start_following()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        """Grey out (None) the keys that do not apply in the present state; E-stop, control and quit always apply."""
+        if action in ENABLED_IN:
+            return True if self.online and self.status.get("state") in ENABLED_IN[action] else None
+        if action in RECIPE_ACTIONS:
+            return True if self.online and self.recipe.get("active") else None
+        return True
 
     def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:
         """Every mill command, searchable, next to textual's own."""

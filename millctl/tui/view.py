@@ -51,6 +51,7 @@ class MillView(App[None]):
         self.recipe: dict[str, Any] = {}
         self.online = False
         self.last_seq = 0
+        self._applies: tuple[str, bool, bool] | None = None
 
     def compose(self) -> ComposeResult:
         """The main screen."""
@@ -168,8 +169,12 @@ class MillView(App[None]):
         self.redraw_top()
 
     def redraw_top(self) -> None:
-        """State, control and connection in one line."""
+        """State, control and connection in one line; the footer's keys follow state, connection and recipe."""
         state = str(self.status.get("state", "—"))
+        applies = (state, self.online, bool(self.recipe.get("active")))
+        if applies != self._applies:
+            self._applies = applies
+            self.refresh_bindings()
         holder = "you" if self.link.holds_control else (self.control.get("holder") or "nobody")
         where = "online" if self.online else "OFFLINE"
         text = Text.assemble(("millctl ", "bold"), (f" {state} ", state_style(state)), ("  control ", "dim"),

@@ -17,7 +17,7 @@ import pytest
 from textual.widgets import Input, Static
 
 from millctl.tui import MillApp
-from millctl.tui.modals import ConfirmModal, SetpointsModal
+from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal
 from tests.unit.tui.conftest import Service, until
 
 SIZE = (120, 40)
@@ -122,8 +122,8 @@ async def test_estop_works_inside_a_dialog(fault_service: Service) -> None:
     app = MillApp(str(fault_service.socket))
     async with app.run_test(size=SIZE, notifications=True) as pilot:
         await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
-        await pilot.press("s")
-        await until(pilot, lambda: isinstance(app.screen, SetpointsModal), "the setpoint dialog")
+        await pilot.press("n")
+        await until(pilot, lambda: isinstance(app.screen, RecipeModal), "the recipe dialog")
         await pilot.press("ctrl+x")
         await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the E-stop trip")
         assert "E-stop" in status_of(fault_service)["trip_cause"]
