@@ -33,9 +33,10 @@ def _tui(args: argparse.Namespace) -> int:
     if not args.sim:
         MillApp(args.socket, config=args.config).run()
         return int(ExitCode.OK)
-    if args.socket:
-        raise SystemExit("millctl tui: --sim uses its own private socket; drop --socket")
     console = stderr_console()
+    if args.socket:
+        console.print("millctl tui: --sim uses its own private socket; drop --socket", markup=False)
+        return int(ExitCode.INVALID_INPUT)
     console.print("millctl tui: starting the simulated service and node…", markup=False)
     with SimService(args.config) as sim:
         app = MillApp(sim.socket_path, sim=True)
