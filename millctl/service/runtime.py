@@ -129,12 +129,20 @@ class ServiceRuntime:
             self._halt.wait(max(delay_s, 0.0))
 
     def tick(self) -> None:
-        """One step of everything, under the lock: node, controller, recipe runner."""
+        """One step of everything, under the lock: controller, recipe runner, then the embedded node.
+
+        The controller goes first: in one process a stall (the machine busy, a
+        long request holding the lock) freezes controller and node alike, and
+        the node must judge a heartbeat the controller had the chance to send,
+        not the gap that both slept through. (A node in its own process, as on
+        real hardware, keeps its own clock and watchdog: there a stalled
+        controller trips it, as the hil tier shows.)
+        """
         with self.lock:
-            if self.node is not None:
-                self.node.tick()
             self.controller.tick()
             self.recipe.tick()
+            if self.node is not None:
+                self.node.tick()
 
     @property
     def running(self) -> bool:
