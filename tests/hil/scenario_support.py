@@ -34,6 +34,7 @@ from millctl.client import DEFAULT_TIMEOUT_S, Client
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.config.models import Bus, MillConfig
+from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.errors import MillctlError
 from millctl.protocol import (
     Codec,
@@ -130,9 +131,9 @@ class Bounds:
 
     @property
     def stale_trip_s(self) -> float:
-        """Last node frame → STOP: the longest stale bound of the safety-relevant frames, one controller tick."""
+        """Last frame of the first kind to go stale → STOP: the longest stale bound of them, one controller tick."""
         interlock = self.config.interlock
-        periods = [self._period(kind) for kind in (NodeStatus, DriveTelemetry)]
+        periods = [self._period(kind) for kind in SAFETY_RELEVANT]
         stale = max(max(interlock.stale_periods * p, interlock.min_stale_s) for p in periods)
         return self.scaled(stale + self.config.timing.controller_tick_s)
 
