@@ -23,7 +23,7 @@ from millctl.client import (
 from millctl.config import load_config
 from millctl.errors import ExitCode
 from millctl.service import ServiceRuntime, create_app
-from tests.unit.service.conftest import write_config
+from tests.support.service import write_config
 
 
 def _response(status: int, body: dict[str, object]) -> httpx.Response:

@@ -22,7 +22,7 @@ from schemathesis.specs.openapi.checks import (
 
 from millctl.config import load_config
 from millctl.service import ServiceRuntime, create_app
-from tests.unit.service.conftest import write_config
+from tests.support.service import write_config
 
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 

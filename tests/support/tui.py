@@ -19,7 +19,7 @@ import pytest
 from textual.pilot import Pilot
 from textual.widgets import RichLog
 
-from tests.unit.service.conftest import (
+from tests.support.service import (
     REPO,
     START_TIMEOUT_S,
     Service,
@@ -32,11 +32,11 @@ __all__ = ["Service", "start_fault_service", "start_service", "until"]
 
 
 def start_fault_service(directory: Path) -> Service:
-    """Start :mod:`tests.unit.tui.fault_service` (SIGUSR1: vibration stall, SIGUSR2: clear) in ``directory``."""
+    """Start :mod:`tests.support.fault_service` (SIGUSR1: vibration stall, SIGUSR2: clear) in ``directory``."""
     config = write_config(directory)
     log = directory / "serve.log"
     with log.open("wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "tests.unit.tui.fault_service", str(config)], cwd=REPO,
+        proc = subprocess.Popen([sys.executable, "-m", "tests.support.fault_service", str(config)], cwd=REPO,
                                 stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT)
     service = Service(proc, config, directory / "mill.sock", directory / "records", log)
     deadline = time.monotonic() + START_TIMEOUT_S

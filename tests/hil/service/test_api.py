@@ -16,7 +16,7 @@ from millctl.cli import main
 from millctl.client import AsyncClient, ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
 from millctl.errors import ExitCode, InterlockError
 from millctl.records import read_records
-from tests.unit.service.conftest import Service, wait_for
+from tests.support.service import Service, wait_for
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 PROBE = (

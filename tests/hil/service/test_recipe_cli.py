@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from millctl.records import read_records
-from tests.unit.service.conftest import REPO, private_dir, run_millctl, start_service, wait_for, write_config
+from tests.support.service import REPO, private_dir, run_millctl, start_service, wait_for, write_config
 
 SHORT = """
 [recipe]

@@ -13,7 +13,7 @@ from millctl.client import AccessDenied, Client
 from millctl.config import load_config
 from millctl.errors import BusError, ExitCode
 from millctl.service import serve
-from tests.unit.service.conftest import private_dir, start_service, write_config
+from tests.support.service import private_dir, start_service, write_config
 
 TOKEN = "s3cret-token-for-the-test-0123456789"
 

@@ -7,8 +7,8 @@ from pathlib import Path
 from textual.widgets import RichLog, Static
 
 from millctl.tui import MillApp
-from tests.unit.service.conftest import start_service, write_config
-from tests.unit.tui.conftest import until
+from tests.support.service import start_service, write_config
+from tests.support.tui import until
 
 
 def log_lines(app: MillApp) -> list[str]:

@@ -18,7 +18,7 @@ from textual.widgets import Input, Static
 
 from millctl.tui import MillApp
 from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal
-from tests.unit.tui.conftest import Service, until
+from tests.support.tui import Service, until
 
 SIZE = (120, 40)
 

@@ -1,4 +1,4 @@
-"""``python -m tests.unit.tui.fault_service CONFIG``: ``millctl serve`` whose embedded node accepts fault injection.
+"""``python -m tests.support.fault_service CONFIG``: ``millctl serve`` whose embedded node accepts fault injection.
 
 The service has no switch to enable fault injection on its embedded node
 (only ``python -m firmware_sim --fault-injection`` has one), and its virtual

@@ -25,7 +25,7 @@ import pytest
 from millctl.client import Client
 from millctl.config.loader import packaged_file
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 30.0
 
