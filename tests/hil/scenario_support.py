@@ -429,11 +429,17 @@ class Mill:
         return wait_for(
             lambda: (s := self.status())["state"] == state and s,
             self.timeout(timeout_s),
-            f"the controller to be {state} (service output:\n{self._tail()})",
+            f"the controller to be {state}\n{self._tail()}",
         )
 
     def _tail(self) -> str:
-        return self.spawn.output(self.service)[-3000:] if self.service is not None else ""
+        """The last lines of the service's and the node's output, for failure messages."""
+        parts = [
+            f"{name} output:\n{self.spawn.output(proc)[-2000:]}"
+            for name, proc in (("service", self.service), ("node", self.node))
+            if proc is not None
+        ]
+        return "\n".join(parts)
 
     def run_at(self, rotary_rpm: float, vibration_rpm: float) -> dict[str, Any]:
         """Take control, arm, ramp to the speed pair and wait until the measured speeds are there."""

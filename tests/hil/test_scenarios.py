@@ -322,6 +322,7 @@ def test_node_killed_and_restarted_mid_run_controller_trips_and_nothing_runs_wit
     probe.wait_first(is_status(NodeState.DISABLED), t_restart, mill.timeout(30.0), "the restarted node")
     time.sleep(1.0)
     assert mill.status()["state"] == "TRIPPED"  # latched across the restart
+    mill.client.take_control()  # renew the lease: a restart in the VM outlasts it
     mill.client.reset()
     mill.wait_state("DISABLED")
     t_reset = probe.now()
