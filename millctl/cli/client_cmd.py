@@ -8,10 +8,10 @@ control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
 from __future__ import annotations
 
 import argparse
-import math
 from collections import deque
 from typing import Any
 
+from millctl.cli.args import finite_float
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
 
@@ -22,16 +22,6 @@ SIMPLE_COMMANDS = {
     "estop": "emergency stop (needs no control; always accepted)",
     "reset": "clear a latched trip (drives at standstill, fresh telemetry)",
 }
-
-
-def _float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text} must be a finite number")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -47,11 +37,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     setp = subparsers.add_parser(
         "set", parents=[common, take], help="ramp to new speeds (and furnace target); refused outside the envelope"
     )
-    setp.add_argument("--rot-rpm", type=_float, required=True, help="rotary speed ω_r (rpm)")
-    setp.add_argument("--vib-rpm", type=_float, required=True, help="vibration speed ω_v (rpm)")
-    setp.add_argument("--temp-c", type=_float, help="furnace target (°C)")
-    setp.add_argument("--rot-rate", type=_float, help="rotary ramp rate (rpm/s; default: the drive's maximum)")
-    setp.add_argument("--vib-rate", type=_float, help="vibration ramp rate (rpm/s; default: the drive's maximum)")
+    setp.add_argument("--rot-rpm", type=finite_float, required=True, help="rotary speed ω_r (rpm)")
+    setp.add_argument("--vib-rpm", type=finite_float, required=True, help="vibration speed ω_v (rpm)")
+    setp.add_argument("--temp-c", type=finite_float, help="furnace target (°C)")
+    setp.add_argument("--rot-rate", type=finite_float, help="rotary ramp rate (rpm/s; default: the drive's maximum)")
+    setp.add_argument("--vib-rate", type=finite_float, help="vibration ramp rate (rpm/s; default: the drive's maximum)")
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
     setp.set_defaults(handler=_set)
     for name, text in SIMPLE_COMMANDS.items():
@@ -83,8 +73,15 @@ def _status(args: argparse.Namespace) -> int:
 def _set(args: argparse.Namespace) -> int:
     results = []
     with _client(args) as client, client.control(force=args.force):
-        results.append(client.set_speeds(args.rot_rpm, args.vib_rpm, rotary_rate_rpm_s=args.rot_rate,
-                                         vibration_rate_rpm_s=args.vib_rate, linear=args.linear))
+        results.append(
+            client.set_speeds(
+                args.rot_rpm,
+                args.vib_rpm,
+                rotary_rate_rpm_s=args.rot_rate,
+                vibration_rate_rpm_s=args.vib_rate,
+                linear=args.linear,
+            )
+        )
         if args.temp_c is not None:
             results.append(client.set_furnace(args.temp_c))
     _report(args, results)

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from millctl.cli.args import nonnegative_float
 from millctl.cli.output import print_json, stderr_console, stdout_console, write_atomically
 from millctl.config import LimitLaw, load_config
 from millctl.errors import ExitCode, InvalidInputError
@@ -24,16 +25,6 @@ from millctl.safety import Envelope
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
 
-def _nonnegative_rpm(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of rpm") from None
-    if not np.isfinite(value) or value < 0.0:
-        raise argparse.ArgumentTypeError(f"{text} rpm must be a finite speed ≥ 0")
-    return value
-
-
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``limits``."""
     parser = subparsers.add_parser(
@@ -43,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument(
         "--vib-rpm",
-        type=_nonnegative_rpm,
+        type=nonnegative_float,
         nargs="+",
         metavar="RPM",
         help="vibration speeds (default: 0 to the drive's maximum in 100 rpm steps)",

@@ -7,25 +7,9 @@ import dataclasses
 import math
 from typing import Any
 
+from millctl.cli.args import finite_float, nonnegative_float
 from millctl.cli.output import print_json, stdout_console
 from millctl.errors import ExitCode
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text} must be finite")
-    return value
-
-
-def _nonnegative(text: str) -> float:
-    value = _finite(text)
-    if value < 0.0:
-        raise argparse.ArgumentTypeError(f"{text} must be ≥ 0")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -38,18 +22,22 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "(or that the rods stay pinned), the flight time, the first impact and the level-(b) summary."
         ),
     )
-    parser.add_argument("--rot-rpm", type=_nonnegative, required=True, metavar="RPM", help="vial speed ω_r")
-    parser.add_argument("--vib-rpm", type=_nonnegative, required=True, metavar="RPM", help="cam speed ω_v")
+    parser.add_argument("--rot-rpm", type=nonnegative_float, required=True, metavar="RPM", help="vial speed ω_r")
+    parser.add_argument("--vib-rpm", type=nonnegative_float, required=True, metavar="RPM", help="cam speed ω_v")
     parser.add_argument("--variant", choices=["paper", "corrected"], help="physics (default: the configured one)")
-    parser.add_argument("--theta0-deg", type=_finite, default=-90.0, help="rod 0's initial angle (default −90, bottom)")
-    parser.add_argument("--alpha0-deg", type=_finite, default=0.0, help="initial cam phase (default 0)")
+    parser.add_argument(
+        "--theta0-deg", type=finite_float, default=-90.0, help="rod 0's initial angle (default −90, bottom)"
+    )
+    parser.add_argument("--alpha0-deg", type=finite_float, default=0.0, help="initial cam phase (default 0)")
     parser.add_argument(
         "--method",
         choices=["exact", "legacy", "legacy-interp", "legacy-arcs", "ivp"],
         default="exact",
         help="collision scheme (legacy: the paper's fixed step)",
     )
-    parser.add_argument("--dt", type=_nonnegative, default=1e-4, metavar="S", help="legacy time step (default 1e-4 s)")
+    parser.add_argument(
+        "--dt", type=nonnegative_float, default=1e-4, metavar="S", help="legacy time step (default 1e-4 s)"
+    )
     parser.add_argument("--q", type=int, default=360, help="legacy-arcs: number of wall arcs (default 360)")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(handler=_run)
