@@ -253,8 +253,15 @@ def test_vibration_stall_trips_and_stops_inside_the_envelope(
 
     t_stall = probe.inject(SimFaultCode.VIB_STALL)
     stop = probe.wait_first(is_command(CommandCode.STOP), t_stall, mill.timeout(5.0), "the controller's STOP")
-    outside = [s for s in drive_frames(probe, t_stall) if mill.outside_envelope([s])]
-    measured_s = max(stop.t - outside[0].t, 0.0) if outside else 0.0  # 0: stopped before any sample left
+    # The interlock trips on `debounce_samples` consecutive measurements outside; near the limit the
+    # sensor noise can put one sample out and the next back in, which rightly restarts the count. Its
+    # reaction is therefore timed from the first sample of the run of outside samples that tripped it.
+    run_start: Seen | None = None
+    for seen in drive_frames(probe, t_stall):
+        if seen.t > stop.t:
+            break
+        run_start = (run_start or seen) if mill.outside_envelope([seen]) else None
+    measured_s = max(stop.t - run_start.t, 0.0) if run_start else 0.0  # 0: stopped before any sample left
     bound_s = mill.bounds.measured_trip_s
     report_timing(capsys, "stall_trip", transport.name, measured_s, bound_s)
     assert measured_s <= bound_s
