@@ -34,7 +34,7 @@ IN_NETNS = ROOT / "tests" / "hil" / "in_netns"
 TIMING_SCENARIOS = "stall or watchdog"
 """pytest -k terms of the timing scenarios: trip latency (vibration stall) and watchdog reaction (SIGKILL)."""
 WHAT = {
-    "stall_trip": "trip latency: first out-of-envelope DriveTelemetry on the bus → STOP command on the bus",
+    "stall_trip": "trip latency: first DriveTelemetry of the outside run that tripped → STOP command on the bus",
     "watchdog_after_sigkill": "watchdog: last heartbeat on the bus → node's NodeStatus FAULT/WATCHDOG",
 }
 
