@@ -49,4 +49,10 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
         tmp.unlink(missing_ok=True)
 
 
-__all__ = ["print_json", "stderr_console", "stdout_console", "write_atomically"]
+def hms(seconds: float) -> str:
+    """A duration as h:mm:ss (rounded to the second)."""
+    whole = round(seconds)
+    return f"{whole // 3600:d}:{whole % 3600 // 60:02d}:{whole % 60:02d}"
+
+
+__all__ = ["hms", "print_json", "stderr_console", "stdout_console", "write_atomically"]

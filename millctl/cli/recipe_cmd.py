@@ -6,7 +6,7 @@ import argparse
 import math
 from typing import Any
 
-from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.cli.recipe_run_cmd import register_run
 from millctl.config import load_config
 from millctl.errors import ExitCode, RecipeError
@@ -42,7 +42,7 @@ def preflight(args: argparse.Namespace) -> tuple[Any, RecipePlan]:
 def _check(args: argparse.Namespace) -> int:
     loaded, plan = preflight(args)
     stdout_console().print(
-        f"{loaded.source}: ok — {len(plan.steps)} steps, {_hms(plan.total_s)} planned, "
+        f"{loaded.source}: ok — {len(plan.steps)} steps, {hms(plan.total_s)} planned, "
         f"minimum margin {min(s.min_margin_rpm for s in plan.steps):.1f} rpm under {plan.law}",
         markup=False,
     )
@@ -108,8 +108,8 @@ def _plan(args: argparse.Namespace) -> int:
         table.add_row(
             str(s["index"]),
             s["kind"],
-            _hms(s["start_s"]),
-            "open" if s["open_ended"] else _hms(s["duration_s"]),
+            hms(s["start_s"]),
+            "open" if s["open_ended"] else hms(s["duration_s"]),
             f"{s['rotary_rpm']:.1f}",
             f"{s['vibration_rpm']:.1f}",
             "off" if s["furnace_c"] is None else f"{s['furnace_c']:.0f}",
@@ -119,7 +119,7 @@ def _plan(args: argparse.Namespace) -> int:
             s["note"],
         )
     table.caption = (
-        f"final stop {_hms(plan.stop.duration_s)}; total {_hms(plan.total_s)} (open-ended steps not counted)"
+        f"final stop {hms(plan.stop.duration_s)}; total {hms(plan.total_s)} (open-ended steps not counted)"
     )
     stdout_console().print(table)
     stderr_console().print(f"{loaded.source}: sha256 {loaded.sha256[:16]}")
@@ -130,10 +130,3 @@ def _physics_cell(detached: bool | None, value: float | None, fmt: str) -> str:
     if detached is None or value is None:
         return "—"
     return fmt.format(value) if detached else "pinned"
-
-
-def _hms(seconds: float) -> str:
-    seconds = round(seconds)
-    h, rest = divmod(seconds, 3600)
-    m, s = divmod(rest, 60)
-    return f"{h:d}:{m:02d}:{s:02d}"

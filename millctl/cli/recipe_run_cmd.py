@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.errors import BusError, ExitCode
 
 POLL_S = 0.5
@@ -232,14 +232,9 @@ def _line(progress: dict[str, Any]) -> str:
         return "no run"
     return (
         f"{progress.get('state')} step {progress.get('step')}/{progress.get('steps')} ({progress.get('kind')}), "
-        f"elapsed {_hms(progress.get('elapsed_s', 0.0))}, remaining ≈ {_hms(progress.get('remaining_s', 0.0))}"
+        f"elapsed {hms(progress.get('elapsed_s', 0.0))}, remaining ≈ {hms(progress.get('remaining_s', 0.0))}"
         + (f" — {progress['reason']}" if progress.get("reason") else "")
     )
-
-
-def _hms(seconds: float) -> str:
-    seconds = round(seconds)
-    return f"{seconds // 3600:d}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
 
 
 def _summary(args: argparse.Namespace, final: dict[str, Any]) -> int:
@@ -251,7 +246,7 @@ def _summary(args: argparse.Namespace, final: dict[str, Any]) -> int:
         out.print(f"recipe {final.get('recipe')!s}: {final.get('state')}", markup=False)
         out.print(f"  run id   {final.get('run_id')}", markup=False)
         out.print(f"  steps    {final.get('step')}/{final.get('steps')}", markup=False)
-        out.print(f"  elapsed  {_hms(final.get('elapsed_s', 0.0))}", markup=False)
+        out.print(f"  elapsed  {hms(final.get('elapsed_s', 0.0))}", markup=False)
         if final.get("reason"):
             out.print(f"  reason   {final.get('reason')}", markup=False)
         out.print(f"  record   {final.get('record')}", markup=False)

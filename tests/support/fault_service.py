@@ -37,6 +37,7 @@ def main(config_path: str) -> int:
     def inject(fault: SimFaultCode, active: bool) -> Any:
         def handler(signum: int, frame: FrameType | None) -> None:
             bus.send(codec.encode(SimFault(fault, active, 0.0)))
+
         return handler
 
     signal.signal(signal.SIGUSR1, inject(SimFaultCode.VIB_STALL, True))

@@ -78,31 +78,44 @@ def run_millctl(config: Path, *args: str, timeout_s: float = 60.0) -> subprocess
     """Run ``millctl --config CONFIG ARGS…`` and capture its output."""
     return subprocess.run(
         [sys.executable, "-m", "millctl", "--config", str(config), *args],
-        cwd=REPO, capture_output=True, text=True, timeout=timeout_s, check=False,
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+        check=False,
     )
 
 
-def start_service(directory: Path, *, wait_for_node: bool = True) -> Service:
-    """Start ``millctl serve`` with the config in ``directory``; return once the API answers (and the node is seen)."""
+def start_service(
+    directory: Path, *, wait_for_node: bool = True, module_args: list[str] | None = None, what: str = "millctl serve"
+) -> Service:
+    """Start ``millctl serve`` (or ``python -m MODULE_ARGS…``) with the config in ``directory``.
+
+    Returns once the API answers (and, with ``wait_for_node``, the node is seen).
+    """
     config = directory / "mill.toml"
     log = directory / "serve.log"
+    argv = module_args if module_args is not None else ["millctl", "--config", str(config), "serve"]
     with log.open("wb") as out:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "millctl", "--config", str(config), "serve"],
-            cwd=REPO, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+            [sys.executable, "-m", *argv],
+            cwd=REPO,
+            stdin=subprocess.DEVNULL,
+            stdout=out,
+            stderr=subprocess.STDOUT,
         )
     service = Service(proc, config, directory / "mill.sock", directory / "records", log)
     deadline = time.monotonic() + START_TIMEOUT_S
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            pytest.fail(f"millctl serve exited with {proc.returncode}:\n{service.output()}")
+            pytest.fail(f"{what} exited with {proc.returncode}:\n{service.output()}")
         if service.socket.exists():
             with contextlib.suppress(Exception), service.client() as client:
                 if not wait_for_node or client.status()["state"] == "DISABLED":
                     return service
         time.sleep(0.1)
     service.stop(signal.SIGKILL)
-    pytest.fail(f"millctl serve did not come up within {START_TIMEOUT_S} s:\n{service.output()}")
+    pytest.fail(f"{what} did not come up within {START_TIMEOUT_S} s:\n{service.output()}")
 
 
 @contextlib.contextmanager

@@ -7,10 +7,6 @@ the interpreter lock, and the node's 250 ms watchdog is not meant for that.
 
 from __future__ import annotations
 
-import contextlib
-import signal
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -20,8 +16,6 @@ from textual.pilot import Pilot
 from textual.widgets import RichLog
 
 from tests.support.service import (
-    REPO,
-    START_TIMEOUT_S,
     Service,
     private_dir,
     start_service,
@@ -34,22 +28,7 @@ __all__ = ["Service", "start_fault_service", "start_service", "until"]
 def start_fault_service(directory: Path) -> Service:
     """Start :mod:`tests.support.fault_service` (SIGUSR1: vibration stall, SIGUSR2: clear) in ``directory``."""
     config = write_config(directory)
-    log = directory / "serve.log"
-    with log.open("wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "tests.support.fault_service", str(config)], cwd=REPO,
-                                stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT)
-    service = Service(proc, config, directory / "mill.sock", directory / "records", log)
-    deadline = time.monotonic() + START_TIMEOUT_S
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            pytest.fail(f"the fault service exited with {proc.returncode}:\n{service.output()}")
-        if service.socket.exists():
-            with contextlib.suppress(Exception), service.client() as client:
-                if client.status()["state"] == "DISABLED":
-                    return service
-        time.sleep(0.1)
-    service.stop(signal.SIGKILL)
-    pytest.fail(f"the fault service did not come up within {START_TIMEOUT_S} s:\n{service.output()}")
+    return start_service(directory, module_args=["tests.support.fault_service", str(config)], what="the fault service")
 
 
 @pytest.fixture
