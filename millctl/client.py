@@ -84,10 +84,33 @@ class RequestInvalid(InvalidInputError):
 
 
 def default_socket_path(config: str | os.PathLike[str] | None = None) -> str:
-    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged)."""
-    from millctl.config import load_config
+    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged).
 
-    return load_config(config).config.service.socket_path
+    Resolved as the service resolves it (:mod:`millctl.config.paths`): by
+    platform convention unless the config names one, never from the working
+    folder, so a client in any folder finds the service of the same config.
+    """
+    from millctl.config import load_config
+    from millctl.config.paths import service_paths
+
+    return str(service_paths(load_config(config)).socket)
+
+
+def describe_mill(service: dict[str, Any]) -> str:
+    """One line naming the mill a service controls: config name, bus, simulated or real, and the socket."""
+    kind = "SIMULATED mill (embedded node)" if service.get("simulated") else "real bus"
+    where = f", socket {service['socket_path']}" if service.get("socket_path") else ""
+    return (f"mill {service.get('mill_name', '?')!r} on {service.get('bus_interface')}:{service.get('bus_channel')} "
+            f"({kind}), config {service.get('config_path')}{where}")
+
+
+def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
+    """A recipe file's name and text, read on the client's side (the service opens no path a request names)."""
+    path = Path(path)
+    try:
+        return path.name, path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInputError(f"recipe {path}: cannot read it: {exc}") from None
 
 
 def raise_for_error(response: httpx.Response, where: str) -> None:
@@ -323,8 +346,13 @@ class Client(_Base):
 
     # recipes
     def recipe_run(self, path: str | os.PathLike[str]) -> dict[str, Any]:
-        """Start a recipe file (a path on the service's machine; needs control)."""
-        return dict(self._call("POST", "/v1/recipe/run", {"path": str(Path(path).absolute())}))
+        """Start a recipe file: read here and sent by content (needs control)."""
+        name, text = read_recipe_text(path)
+        return self.recipe_run_text(name, text)
+
+    def recipe_run_text(self, name: str, text: str) -> dict[str, Any]:
+        """Start a recipe given as TOML text, recorded under ``name`` (needs control)."""
+        return dict(self._call("POST", "/v1/recipe/run", {"name": name, "text": text}))
 
     def recipe_pause(self, now: bool = False) -> dict[str, Any]:
         """Pause the run at the next step boundary, or now."""
@@ -473,8 +501,11 @@ class AsyncClient(_Base):
         return dict(await self._call("POST", "/v1/furnace", {"temp_c": temp_c, "rate_c_per_min": rate_c_per_min}))
 
     async def recipe_run(self, path: str | os.PathLike[str]) -> dict[str, Any]:
-        """Start a recipe file."""
-        return dict(await self._call("POST", "/v1/recipe/run", {"path": str(Path(path).absolute())}))
+        """Start a recipe file: read here (in a worker thread) and sent by content."""
+        import asyncio
+
+        name, text = await asyncio.to_thread(read_recipe_text, path)
+        return dict(await self._call("POST", "/v1/recipe/run", {"name": name, "text": text}))
 
     async def recipe_pause(self, now: bool = False) -> dict[str, Any]:
         """Pause the run."""
@@ -507,6 +538,8 @@ __all__ = [
     "ServiceUnavailable",
     "SseParser",
     "default_socket_path",
+    "describe_mill",
     "parse_sse",
     "raise_for_error",
+    "read_recipe_text",
 ]

@@ -3,6 +3,8 @@
 One-shot commands take control for their duration and give it back; when
 another client holds it they exit 2 naming the holder. E-stop needs no
 control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
+Every command names the mill it talks to (config name, bus, simulated or
+real, socket): on stderr, in the status view, and as ``mill`` in JSON.
 """
 
 from __future__ import annotations
@@ -59,20 +61,33 @@ def _client(args: argparse.Namespace) -> Any:
     return Client(args.socket, config=args.config, name="cli")
 
 
+def say_mill(client: Any) -> dict[str, Any]:
+    """Name the mill on stderr; return the service's description."""
+    from millctl.client import describe_mill
+
+    service: dict[str, Any] = client.service()
+    stderr_console().print(f"millctl: {describe_mill(service)}", markup=False, highlight=False)
+    return service
+
+
 def _status(args: argparse.Namespace) -> int:
+    from millctl.client import describe_mill
+
     with _client(args) as client:
+        service = client.service()
         status = client.status()
         control = client.control_state()
     if args.json:
-        print_json({"status": status, "control": control})
+        print_json({"mill": service, "status": status, "control": control})
     else:
-        stdout_console().print(render_status(status, control))
+        stdout_console().print(render_status(status, control, mill=describe_mill(service)))
     return int(ExitCode.OK)
 
 
 def _set(args: argparse.Namespace) -> int:
     results = []
     with _client(args) as client, client.control(force=args.force):
+        say_mill(client)
         results.append(
             client.set_speeds(
                 args.rot_rpm,
@@ -90,6 +105,7 @@ def _set(args: argparse.Namespace) -> int:
 
 def _simple(args: argparse.Namespace) -> int:
     with _client(args) as client:
+        say_mill(client)
         if args.action == "estop":
             result = client.estop()
         else:
@@ -115,13 +131,20 @@ def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
     return f"{value:{fmt}}{unit}"
 
 
-def render_status(status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = ()) -> Any:
-    """A compact rich view: state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
+def render_status(
+    status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = (), mill: str | None = None
+) -> Any:
+    """A compact rich view: mill, state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
     from rich.table import Table
+    from rich.text import Text
 
     table = Table.grid(padding=(0, 2))
     table.add_column(style="bold")
     table.add_column()
+    if mill is not None:
+        table.add_row("mill", mill)
+    for warning in status.get("warnings") or ():
+        table.add_row("WARNING", Text(warning, style="bold red"))
     state = status["state"] + (f" — {status['trip_cause']}" if status.get("trip_cause") else "")
     table.add_row("state", f"{state}   node {status.get('node_state') or '—'} {' '.join(status['node_faults'])}")
     if control is not None:
@@ -169,11 +192,14 @@ def _watch(args: argparse.Namespace) -> int:
 
     console = stderr_console()
     events: deque[dict[str, Any]] = deque(maxlen=6)
+    from millctl.client import describe_mill
+
     with _client(args) as client:
+        mill = describe_mill(client.service())
         control = client.control_state()
         status = client.status()
         try:
-            with Live(render_status(status, control), console=console, refresh_per_second=4) as live:
+            with Live(render_status(status, control, mill=mill), console=console, refresh_per_second=4) as live:
                 for item in client.stream():
                     if item["event"] == "event":
                         events.append(item["data"])
@@ -181,11 +207,11 @@ def _watch(args: argparse.Namespace) -> int:
                             control = client.control_state()
                     elif item["event"] == "status":
                         status = item["data"]
-                    live.update(render_status(status, control, events))
+                    live.update(render_status(status, control, events, mill=mill))
         except KeyboardInterrupt:
             return int(ExitCode.OK)
     console.print("millctl watch: the service closed the stream", markup=False)
     return int(ExitCode.OK)
 
 
-__all__ = ["register", "render_status"]
+__all__ = ["register", "render_status", "say_mill"]
