@@ -139,6 +139,11 @@ class SetpointsRequest(Strict):
     rotary_rate_rpm_s: RpmPerS | None = None
     vibration_rate_rpm_s: RpmPerS | None = None
     linear: bool = False
+    temp_c: float | None = Field(
+        default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
+        description="furnace target (°C) set together with the speeds: all or nothing",
+    )
+    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0)
 
 
 class FurnaceRequest(Strict):
