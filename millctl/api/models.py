@@ -58,6 +58,18 @@ class LinkOut(Strict):
     e2e_score: int = Field(description="the E2E receiver's error score")
 
 
+class BusReceiveOut(Strict):
+    """The controller's bus reader counts since start (:class:`millctl.protocol.ReceiveCounts`)."""
+
+    frames: int = Field(description="frames read")
+    estops: int = Field(description="E-stop frames (ID 0x000) read, from any sender")
+    malformed: int = Field(description="frames that do not fit the DBC (length, DLC, FD, remote, unknown ID, value)")
+    error_frames: int = Field(description="CAN error frames")
+    receive_errors: int = Field(description="reads that failed (undecodable datagram, socket error)")
+    capped_drains: int = Field(description="ticks whose drain stopped at its bound with frames left")
+    last_error: str = Field(description="the latest receive error or malformed frame (empty before the first)")
+
+
 class StatusOut(Strict):
     """A snapshot of the controller (as :class:`millctl.controller.Status`; non-finite floats as null)."""
 
@@ -95,6 +107,8 @@ class StatusOut(Strict):
     shear_kpa: float | None = Field(description="shear stress (kPa)")
     link: dict[str, LinkOut] = Field(description="health of each telemetry frame kind")
     invalid_frames: int = Field(description="frames dropped as invalid")
+    receive_errors: int = Field(description="failed reads and CAN error frames, counted and skipped")
+    bus_receive: BusReceiveOut = Field(description="every count of the controller's bus reader")
 
 
 # ---------------------------------------------------------------- envelope
