@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     setp.add_argument("--rot-rpm", type=finite_float, required=True, help="rotary speed ω_r (rpm)")
     setp.add_argument("--vib-rpm", type=finite_float, required=True, help="vibration speed ω_v (rpm)")
-    setp.add_argument("--temp-c", type=finite_float, help="furnace target (°C)")
+    setp.add_argument("--temp-c", type=finite_float, help="furnace target (°C); refused together with the speeds")
     setp.add_argument("--rot-rate", type=finite_float, help="rotary ramp rate (rpm/s; default: the drive's maximum)")
     setp.add_argument("--vib-rate", type=finite_float, help="vibration ramp rate (rpm/s; default: the drive's maximum)")
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
@@ -80,7 +80,8 @@ def _status(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"mill": service, "status": status, "control": control})
     else:
-        stdout_console().print(render_status(status, control, mill=describe_mill(service)))
+        stdout_console().print(render_status(status, control, mill=describe_mill(service),
+                                             warnings=service.get("warnings", ())))
     return int(ExitCode.OK)
 
 
@@ -95,10 +96,9 @@ def _set(args: argparse.Namespace) -> int:
                 rotary_rate_rpm_s=args.rot_rate,
                 vibration_rate_rpm_s=args.vib_rate,
                 linear=args.linear,
+                temp_c=args.temp_c,  # one request: the service checks speeds and furnace whole
             )
         )
-        if args.temp_c is not None:
-            results.append(client.set_furnace(args.temp_c))
     _report(args, results)
     return int(ExitCode.OK)
 
@@ -132,7 +132,8 @@ def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
 
 
 def render_status(
-    status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = (), mill: str | None = None
+    status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = (), mill: str | None = None,
+    warnings: Any = (),
 ) -> Any:
     """A compact rich view: mill, state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
     from rich.table import Table
@@ -143,7 +144,7 @@ def render_status(
     table.add_column()
     if mill is not None:
         table.add_row("mill", mill)
-    for warning in status.get("warnings") or ():
+    for warning in warnings:
         table.add_row("WARNING", Text(warning, style="bold red"))
     state = status["state"] + (f" — {status['trip_cause']}" if status.get("trip_cause") else "")
     table.add_row("state", f"{state}   node {status.get('node_state') or '—'} {' '.join(status['node_faults'])}")
@@ -190,24 +191,29 @@ def render_status(
 def _watch(args: argparse.Namespace) -> int:
     from rich.live import Live
 
-    console = stderr_console()
-    events: deque[dict[str, Any]] = deque(maxlen=6)
     from millctl.client import describe_mill
 
+    console = stderr_console()
+    events: deque[dict[str, Any]] = deque(maxlen=6)
+
     with _client(args) as client:
-        mill = describe_mill(client.service())
+        service = client.service()
+        mill = describe_mill(service)
         control = client.control_state()
         status = client.status()
         try:
-            with Live(render_status(status, control, mill=mill), console=console, refresh_per_second=4) as live:
+            first = render_status(status, control, mill=mill, warnings=service["warnings"])
+            with Live(first, console=console, refresh_per_second=4) as live:
                 for item in client.stream():
                     if item["event"] == "event":
                         events.append(item["data"])
                         if item["data"]["kind"] == "control":
                             control = client.control_state()
+                        elif item["data"]["kind"] == "records":
+                            service = client.service()
                     elif item["event"] == "status":
                         status = item["data"]
-                    live.update(render_status(status, control, events, mill=mill))
+                    live.update(render_status(status, control, events, mill=mill, warnings=service["warnings"]))
         except KeyboardInterrupt:
             return int(ExitCode.OK)
     console.print("millctl watch: the service closed the stream", markup=False)

@@ -30,6 +30,7 @@ from typing import Any, TypeVar
 import can
 
 from millctl import __version__
+from millctl.api import EventKind, ServiceOut
 from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
 from millctl.config.paths import service_paths
@@ -39,7 +40,6 @@ from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
-from millctl.service.models import ServiceOut
 from millctl.service.recipe import RecipeSlot
 from millctl.service.tap import TappedBus
 
@@ -127,10 +127,10 @@ class ServiceRuntime:
     def start(self) -> None:
         """Record the start and the configuration (SAFETY 14: law and margin shown), then start the loop."""
         envelope = self.controller.envelope
-        self.journal.add("service", "service", f"service started (pid {os.getpid()}, millctl {__version__})",
+        self.journal.add(EventKind.SERVICE, "service", f"service started (pid {os.getpid()}, millctl {__version__})",
                          pid=os.getpid(), version=__version__)
         self.journal.add(
-            "config",
+            EventKind.CONFIG,
             "service",
             f"config {self.loaded.source} (sha256 {self.loaded.sha256[:12]}…): envelope {envelope.description}",
             path=self.loaded.source,
@@ -157,8 +157,8 @@ class ServiceRuntime:
             except Exception as exc:  # the loop must say why it died; the node's watchdog does the rest
                 log.exception("control loop failed")
                 self.failed = f"control loop failed: {type(exc).__name__}: {exc}"
-                self.journal.add("service", "service", f"{self.failed}; heartbeat stopped, the node's watchdog stops "
-                                 "the mill")
+                self.journal.add(EventKind.SERVICE, "service", f"{self.failed}; heartbeat stopped, "
+                                 "the node's watchdog stops the mill")
                 return
             next_s += period_s
             delay_s = next_s - time.monotonic()
@@ -251,9 +251,8 @@ class ServiceRuntime:
             log.error("the control loop's urgent queue is full; dropped %s", action)
 
     def status(self) -> dict[str, Any]:
-        """The controller's status, JSON-ready (non-finite floats as None), with the service's warnings."""
+        """The controller's status, JSON-ready (non-finite floats as None)."""
         data: dict[str, Any] = self.call(lambda c: finite(c.status().as_dict()), needs_node=False)
-        data["warnings"] = self.warnings()
         return data
 
     def describe(self) -> ServiceOut:
@@ -278,11 +277,11 @@ class ServiceRuntime:
         """On the records thread: writes started failing (or work again). Warn, record, stop a recipe."""
         self.records_warning = failing
         if failing is None:
-            self.journal.add("records", "service", f"records are written again ({self.records.lost} lost)",
+            self.journal.add(EventKind.RECORDS, "service", f"records are written again ({self.records.lost} lost)",
                              lost=self.records.lost)
             return
-        self.journal.add("records", "service", f"records cannot be written: {failing}; the mill is controlled as "
-                         "before, a running recipe is stopped", error=failing)
+        self.journal.add(EventKind.RECORDS, "service", f"records cannot be written: {failing}; the mill is "
+                         "controlled as before, a running recipe is stopped", error=failing)
 
         def stop_recipe(c: Controller) -> None:
             self.recipe.abort_if_active("service", reason=f"records cannot be written ({failing})")
@@ -337,7 +336,7 @@ class ServiceRuntime:
                 measured = self.controller.measured
                 shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
                 self.journal.add(
-                    "service",
+                    EventKind.SERVICE,
                     "service",
                     f"service stopped: {reason}; state {self.controller.state}, measured {shown}"
                     + ("" if stopped else f" (no standstill within {bound_s:.0f} s)"),

@@ -52,7 +52,7 @@ class TappedBus(can.BusABC):
             return
         try:
             self._write(entry)
-        except (OSError, ValueError) as exc:  # the bus log must never stop the control loop
+        except Exception as exc:  # the bus log must never stop the control loop, whatever the frame holds
             log.error("bus log write failed: %s", exc)
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
