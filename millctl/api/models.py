@@ -55,7 +55,8 @@ class LinkOut(Strict):
     stale: bool
     frames: int = Field(description="valid frames received")
     e2e: dict[str, int] = Field(description="E2E verdict counts (ok, repeated, wrong-crc …)")
-    e2e_score: int = Field(description="the E2E receiver's error score")
+    e2e_score: int = Field(description="the E2E receiver's net error score")
+    e2e_sequence_score: int = Field(description="the E2E receiver's sequence score (repeated/out-of-sequence counters)")
 
 
 class BusReceiveOut(Strict):
