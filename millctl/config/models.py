@@ -207,6 +207,8 @@ class Interlock(_Strict):
     """Net E2E error score, and sequence score, that fault a link."""
     e2e_sequence_decay_frames: Annotated[int, Field(ge=1, le=1000)] = 16
     """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
+    startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
+    """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
 
 
 class Timing(_Strict):
