@@ -25,8 +25,8 @@ from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
 from millctl.errors import InterlockError
 from millctl.protocol import (
-    ESTOP_ID,
     AliveCounter,
+    BusReader,
     Codec,
     Command,
     CommandCode,
@@ -91,6 +91,7 @@ class Controller:
         self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(self.codec, config.interlock)
+        self.reader = BusReader(bus, "controller")
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
         self._counters: dict[type[MillMessage], AliveCounter] = {
             kind: AliveCounter() for kind in (Heartbeat, Setpoints, Command)
@@ -110,8 +111,6 @@ class Controller:
         self._last_tick_s = clock.now()
         self._next_heartbeat_s = clock.now()
         self._next_setpoints_s = clock.now()
-        self.invalid_frames = 0
-        self.foreign_estops = 0
 
     # ------------------------------------------------------------------ state
     @property
@@ -325,24 +324,30 @@ class Controller:
         self._transmit(now)
 
     def _drain(self, now: float) -> None:
-        while True:
-            frame = self.bus.recv(timeout=0.0)
-            if frame is None:
-                return
-            if frame.arbitration_id == ESTOP_ID and not frame.is_extended_id:
-                self.foreign_estops += 1
-                continue  # the node trips on it and reports; we see it in NodeStatus
+        """Read every frame waiting (SAFETY 22); bad input is counted by the reader, never raised (SAFETY 19)."""
+        batch = self.reader.drain()
+        # an E-stop from anyone is the node's to act on; it reports it in NodeStatus and we trip on that
+        for frame in batch.frames:
             try:
                 decoded = self.codec.decode(frame)
             except ProtocolError as exc:
-                self.invalid_frames += 1
-                log.debug("ignored frame: %s", exc)
+                self.reader.malformed(frame, exc)
                 continue
             message = self.tracker.accept(decoded, now)
             if isinstance(message, NodeStatus):
                 self._on_node_status(message)
             elif isinstance(message, DriveTelemetry):
                 self._on_measured(message)
+
+    @property
+    def invalid_frames(self) -> int:
+        """Frames read that do not fit the DBC (counted by the bus reader)."""
+        return self.reader.counts.malformed
+
+    @property
+    def foreign_estops(self) -> int:
+        """E-stop frames read from other senders (the node acts on them)."""
+        return self.reader.counts.estops
 
     def _on_node_status(self, status: NodeStatus) -> None:
         state, node = self.state, status.state

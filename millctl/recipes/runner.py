@@ -15,13 +15,13 @@ Run states::
 
 from __future__ import annotations
 
-import enum
 import logging
 import uuid
 from pathlib import Path
 from typing import Any
 
 from millctl import __version__
+from millctl.api import RunState
 from millctl.clock import Clock
 from millctl.controller import CommandRefused, Controller, ControllerState
 from millctl.errors import InterlockError
@@ -42,21 +42,8 @@ SETTLE_TIMEOUT_S = 30.0
 STANDSTILL_RPM = 1.0
 
 
-class RunState(enum.StrEnum):
-    """Where a recipe run is."""
-
-    STARTING = "STARTING"
-    RUNNING = "RUNNING"
-    PAUSED = "PAUSED"
-    HELD = "HELD"
-    """Held automatically (furnace out of its band); the operator resumes."""
-    STOPPING = "STOPPING"
-    DONE = "DONE"
-    ABORTED = "ABORTED"
-    FAILED = "FAILED"
-
-
-FINAL = frozenset({RunState.DONE, RunState.ABORTED, RunState.FAILED})
+FINAL = frozenset(s for s in RunState if s.final)
+"""The states a run ends in."""
 
 
 class RecipeRunner:
