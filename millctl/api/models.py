@@ -189,6 +189,11 @@ class SetpointsRequest(Strict):
     vibration_rate_rpm_s: RpmPerS | None = Field(default=None,
                                                  description="vibration ramp rate (rpm/s); default: config")
     linear: bool = Field(default=False, description="ramp both drives on one straight line (docs/safety.md)")
+    temp_c: float | None = Field(default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
+                                 description="furnace target (°C) set with the speeds, all or nothing: "
+                                 "when any part is refused, no part is applied")
+    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
+                                         description="heating rate with temp_c (°C/min); default: config")
 
 
 class FurnaceRequest(Strict):

@@ -205,6 +205,8 @@ class Interlock(_Strict):
     """A node frame is stale after max(stale_periods × its period, min_stale_s)."""
     e2e_error_limit: Annotated[int, Field(ge=1, le=100)] = 5
     """Net E2E error score that faults a link."""
+    startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
+    """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
 
 
 class Timing(_Strict):

@@ -203,10 +203,18 @@ class Controller:
         rotary_rate_rpm_s: float | None = None,
         vibration_rate_rpm_s: float | None = None,
         linear: bool = False,
+        furnace_c: float | None = None,
+        heating_rate_c_per_min: float | None = None,
         source: str = "operator",
     ) -> Trajectory:
-        """Plan a ramp to new speeds and start it; refuse (nothing sent) when it would leave the envelope."""
+        """Plan a ramp to new speeds (and, with ``furnace_c``, a furnace target) and start it.
+
+        All or nothing: every part is checked before any is applied, so a
+        refused furnace target leaves the speeds untouched and the other way
+        round (InterlockRefused, nothing sent).
+        """
         self._require({S.ARMED, S.RUNNING}, "set speeds", source)
+        rate_c_per_min = None if furnace_c is None else self._check_furnace(furnace_c, heating_rate_c_per_min, source)
         target = SpeedPoint(rotary_rpm, vibration_rpm)
         try:
             if linear:
@@ -227,6 +235,8 @@ class Controller:
             vibration_rpm=move.end.omega_v_rpm,
             duration_s=move.duration_s,
         )
+        if furnace_c is not None and rate_c_per_min is not None:
+            self._apply_furnace(furnace_c, rate_c_per_min, source)
         return move
 
     def set_furnace(
@@ -238,17 +248,26 @@ class Controller:
             self._emit(EventKind.COMMAND, source, "heater off")
             return
         self._require({S.ARMED, S.RUNNING}, "set the furnace", source)
+        self._apply_furnace(temp_c, self._check_furnace(temp_c, rate_c_per_min, source), source)
+
+    def _check_furnace(self, temp_c: float, rate_c_per_min: float | None, source: str) -> float:
+        """Check a furnace target and heating rate (°C, °C/min); return the rate in force, or refuse."""
         rate = self.config.furnace.max_heating_rate_c_per_min if rate_c_per_min is None else rate_c_per_min
         for verdict in (self.envelope.check(0.0, 0.0, temp_c), self.envelope.check_heating_rate(rate)):
             if not verdict.ok:
                 self._emit(EventKind.REFUSAL, source, verdict.reason(), temp_c=temp_c)
                 raise InterlockRefused(verdict, "furnace setpoint")
+        return rate
+
+    def _apply_furnace(self, temp_c: float, rate_c_per_min: float, source: str) -> None:
         if self.furnace_target_c is None:  # ramp from where the furnace is
             furnace = self.furnace
             self.furnace_setpoint_c = furnace.temp_c if furnace is not None else self.config.furnace.ambient_temp_c
         self.furnace_target_c = temp_c
-        self.heating_rate_c_per_min = rate
-        self._emit(EventKind.COMMAND, source, f"furnace to {temp_c:.1f} °C at {rate:.1f} °C/min", temp_c=temp_c)
+        self.heating_rate_c_per_min = rate_c_per_min
+        self._emit(
+            EventKind.COMMAND, source, f"furnace to {temp_c:.1f} °C at {rate_c_per_min:.1f} °C/min", temp_c=temp_c
+        )
 
     def stop(self, source: str = "operator", reason: str = "operator request") -> None:
         """Controlled stop (category 1): the node ramps both drives down inside the envelope, heater off."""
@@ -334,6 +353,8 @@ class Controller:
                 self.reader.malformed(frame, exc)
                 continue
             message = self.tracker.accept(decoded, now)
+            if message is not None:
+                self.tracker.connected(now)
             if isinstance(message, NodeStatus):
                 self._on_node_status(message)
             elif isinstance(message, DriveTelemetry):
