@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from crccheck.crc import Crc8SaeJ1850
+from hypothesis import given
+from hypothesis import strategies as st
 
 from millctl.config import MillConfig
 from millctl.protocol import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
@@ -25,9 +28,23 @@ def test_crc8_sae_j1850_known_answers(hex_data: str, expected: int) -> None:
     assert crc8_sae_j1850(bytes.fromhex(hex_data)) == expected
 
 
-def test_e2e_crc_covers_data_id_low_then_high_then_payload() -> None:
+@given(st.binary(max_size=64))
+def test_crc8_sae_j1850_agrees_with_an_independent_implementation(data: bytes) -> None:
+    """crccheck's table-free CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xorout 0xFF) is the oracle."""
+    assert crc8_sae_j1850(data) == Crc8SaeJ1850.calc(data)
+
+
+@given(st.integers(0, 0xFFFF), st.binary(min_size=1, max_size=7))
+def test_e2e_crc_covers_data_id_low_then_high_then_payload(data_id: int, payload: bytes) -> None:
+    """AUTOSAR E2E: the CRC runs over the data ID's low byte, its high byte, then the payload (oracle: crccheck)."""
+    low, high = data_id.to_bytes(2, "little")
+    assert e2e_crc(data_id, payload) == Crc8SaeJ1850.calc(bytes((low, high)) + payload)
+
+
+def test_e2e_crc_known_answer_and_sensitivity() -> None:
     payload = bytes.fromhex("05A00FE02E1C25")
-    assert e2e_crc(0x4D30, payload) == crc8_sae_j1850(bytes((0x30, 0x4D)) + payload)
+    # crccheck: Crc8SaeJ1850.calc(bytes.fromhex("304D05A00FE02E1C25")) == 0xC3
+    assert e2e_crc(0x4D30, payload) == 0xC3
     assert e2e_crc(0x4D30, payload) != e2e_crc(0x4D20, payload)
     assert e2e_crc(0x304D, payload) != e2e_crc(0x4D30, payload)
     with pytest.raises(ValueError, match="data ID"):
