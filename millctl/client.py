@@ -204,11 +204,17 @@ def _set_speeds(
     rotary_rate_rpm_s: float | None = None,
     vibration_rate_rpm_s: float | None = None,
     linear: bool = False,
+    temp_c: float | None = None,
+    rate_c_per_min: float | None = None,
 ) -> Request:
-    """Ramp to new speeds (rpm; needs control); an :class:`InterlockRefusal` when outside the envelope."""
+    """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing (needs control).
+
+    An :class:`InterlockRefusal` when any part is outside the envelope: then no part is applied.
+    """
     return _post("/v1/setpoints", {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm,
                                    "rotary_rate_rpm_s": rotary_rate_rpm_s,
-                                   "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear})
+                                   "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear,
+                                   "temp_c": temp_c, "rate_c_per_min": rate_c_per_min})
 
 
 def _set_furnace(temp_c: float | None, *, rate_c_per_min: float | None = None) -> Request:

@@ -8,6 +8,7 @@ controller, so every part of millctl may import it.
 
 from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, StreamKind
 from millctl.api.models import (
+    BusReceiveOut,
     CheckOut,
     CheckRequest,
     CommandOut,
@@ -37,6 +38,7 @@ API_VERSION = "v1"
 
 __all__ = [
     "API_VERSION",
+    "BusReceiveOut",
     "CheckOut",
     "CheckRequest",
     "CommandOut",

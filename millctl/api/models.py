@@ -58,7 +58,20 @@ class LinkOut(Strict):
     stale: bool
     frames: int = Field(description="valid frames received")
     e2e: dict[str, int] = Field(description="E2E verdict counts (ok, repeated, wrong-crc …)")
-    e2e_score: int = Field(description="the E2E receiver's error score")
+    e2e_score: int = Field(description="the E2E receiver's net error score")
+    e2e_sequence_score: int = Field(description="the E2E receiver's sequence score (repeated/out-of-sequence counters)")
+
+
+class BusReceiveOut(Strict):
+    """The controller's bus reader counts since start (:class:`millctl.protocol.ReceiveCounts`)."""
+
+    frames: int = Field(description="frames read")
+    estops: int = Field(description="E-stop frames (ID 0x000) read, from any sender")
+    malformed: int = Field(description="frames that do not fit the DBC (length, DLC, FD, remote, unknown ID, value)")
+    error_frames: int = Field(description="CAN error frames")
+    receive_errors: int = Field(description="reads that failed (undecodable datagram, socket error)")
+    capped_drains: int = Field(description="ticks whose drain stopped at its bound with frames left")
+    last_error: str = Field(description="the latest receive error or malformed frame (empty before the first)")
 
 
 class StatusOut(Strict):
@@ -98,6 +111,8 @@ class StatusOut(Strict):
     shear_kpa: float | None = Field(description="shear stress (kPa)")
     link: dict[str, LinkOut] = Field(description="health of each telemetry frame kind")
     invalid_frames: int = Field(description="frames dropped as invalid")
+    receive_errors: int = Field(description="failed reads and CAN error frames, counted and skipped")
+    bus_receive: BusReceiveOut = Field(description="every count of the controller's bus reader")
 
 
 # ---------------------------------------------------------------- envelope
@@ -178,6 +193,11 @@ class SetpointsRequest(Strict):
     vibration_rate_rpm_s: RpmPerS | None = Field(default=None,
                                                  description="vibration ramp rate (rpm/s); default: config")
     linear: bool = Field(default=False, description="ramp both drives on one straight line (docs/safety.md)")
+    temp_c: float | None = Field(default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
+                                 description="furnace target (°C) set with the speeds, all or nothing: "
+                                 "when any part is refused, no part is applied")
+    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
+                                         description="heating rate with temp_c (°C/min); default: config")
 
 
 class FurnaceRequest(Strict):

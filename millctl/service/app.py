@@ -246,12 +246,17 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     def setpoints(
         body: SetpointsRequest, x_millctl_lease: LeaseId = None
     ) -> CommandOut:
-        """Ramp to new drive speeds (rpm); refused with the interlock's reason when outside the envelope."""
+        """Ramp to new drive speeds (rpm), with an optional furnace target (°C): all or nothing.
+
+        Refused with the interlock's reason when any part is outside the envelope; then no part is applied.
+        """
+        furnace = "" if body.temp_c is None else f", furnace {body.temp_c:.1f} °C"
         return command(
             x_millctl_lease,
-            f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm",
+            f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm{furnace}",
             lambda c, s: c.set_speeds(body.rotary_rpm, body.vibration_rpm, rotary_rate_rpm_s=body.rotary_rate_rpm_s,
-                                      vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear, source=s),
+                                      vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear,
+                                      furnace_c=body.temp_c, heating_rate_c_per_min=body.rate_c_per_min, source=s),
             settles="setpoints" if body.rotary_rpm > 0.0 or body.vibration_rpm > 0.0 else "",
         )
 

@@ -176,6 +176,8 @@ class LinkPanel(Static):
             text.append(line, style=style)
         invalid = status.invalid_frames
         text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
+        if receive_errors := status.receive_errors:
+            text.append(f"  receive errors {receive_errors}", style="red")
         self.update(text, layout=False)
 
 

@@ -37,7 +37,7 @@ def link(age_s: float, frames: int, errors: int = 0) -> dict[str, Any]:
     """One frame kind's health."""
     return {"age_s": age_s, "stale_after_s": 1.0, "stale": age_s > 1.0, "frames": frames,
             "e2e": {"ok": frames - errors, "wrong-sequence": errors} if errors else {"ok": frames},
-            "e2e_score": errors}
+            "e2e_score": errors, "e2e_sequence_score": errors}
 
 
 def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> StatusOut:
@@ -60,7 +60,9 @@ def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> Status
         "detached": True, "theta_d_deg": 131.4, "impact_rate_hz": 26.7, "impact_energy_mj": 0.42, "shear_kpa": 8.1,
         "link": {"NodeStatus": link(0.03, 900), "DriveTelemetry": link(0.01, 2250),
                  "FurnaceTelemetry": link(1.6, 450), "PhysicsTelemetry": link(9.0, 90, errors=2)},
-        "invalid_frames": 0,
+        "invalid_frames": 0, "receive_errors": 0,
+        "bus_receive": {"frames": 3690, "estops": 0, "malformed": 0, "error_frames": 0, "receive_errors": 0,
+                        "capped_drains": 0, "last_error": ""},
     })
 
 
