@@ -106,8 +106,8 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
         "config": loaded.source,
         "variant": model.variant.value,
         "method": args.method,
-        "rot_rpm": args.rot_rpm,
-        "vib_rpm": args.vib_rpm,
+        "rotary_rpm": args.rot_rpm,
+        "vibration_rpm": args.vib_rpm,
         "theta0_deg": args.theta0_deg,
         "alpha0_deg": args.alpha0_deg,
         "pinned": detachment is None,
@@ -123,12 +123,12 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
 def _run(args: argparse.Namespace) -> int:
     report = physics_report(args)
     if args.json:
-        print_json(report)
+        print_json(args, report)
         return int(ExitCode.OK)
     out = stdout_console()
     out.print(
-        f"{report['variant']} physics, {report['method']} events: ω_r = {report['rot_rpm']:g} rpm, "
-        f"ω_v = {report['vib_rpm']:g} rpm, θ0 = {report['theta0_deg']:g}°, α0 = {report['alpha0_deg']:g}°"
+        f"{report['variant']} physics, {report['method']} events: ω_r = {report['rotary_rpm']:g} rpm, "
+        f"ω_v = {report['vibration_rpm']:g} rpm, θ0 = {report['theta0_deg']:g}°, α0 = {report['alpha0_deg']:g}°"
     )
     det = report["first_detachment"]
     if det is None:

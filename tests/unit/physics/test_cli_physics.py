@@ -18,7 +18,7 @@ def _run(capsys, *args):
 def test_json_report_corrected(capsys):
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
     assert code == 0
-    report = json.loads(out.out)
+    report = json.loads(out.out)["result"]
     assert report["variant"] == "corrected" and not report["pinned"]
     assert report["first_detachment"]["time_s"] >= 0.0
     imp = report["first_impact"]
@@ -36,7 +36,7 @@ def test_legacy_method_and_phases(capsys):
     args = ("--rot-rpm", "100", "--vib-rpm", "800", "--method", "legacy", "--dt", "1e-4")
     code, out = _run(capsys, *args, "--theta0-deg", "-120", "--alpha0-deg", "45", "--json")
     assert code == 0
-    report = json.loads(out.out)
+    report = json.loads(out.out)["result"]
     assert report["method"] == "legacy" and report["first_impact"] is not None
 
 
