@@ -6,10 +6,13 @@ import argparse
 import dataclasses
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from millctl.cli.output import stderr_console
 from millctl.config.loader import LoadedConfig
+
+if TYPE_CHECKING:
+    from millctl.api import ServiceOut
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -61,10 +64,10 @@ def _serve(args: argparse.Namespace) -> int:
     console = stderr_console()
     service = loaded.config.service
 
-    def ready(path: Path, described: dict[str, Any]) -> None:
+    def ready(path: Path, described: ServiceOut) -> None:
         tcp = f", TCP 127.0.0.1:{service.tcp_port} (token)" if service.tcp_port else ""
         console.print(
-            f"millctl serve: {describe_mill(described)}{tcp}, records {described['records_dir']}; "
+            f"millctl serve: {describe_mill(described)}{tcp}, records {described.records_dir}; "
             "Ctrl+C stops the mill and exits",
             markup=False, highlight=False,
         )

@@ -24,11 +24,12 @@ import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import FrameType
-from typing import IO, Any
+from typing import IO
 
 import uvicorn
 from starlette.types import ASGIApp
 
+from millctl.api import ServiceOut
 from millctl.config.loader import LoadedConfig
 from millctl.config.paths import service_paths
 from millctl.errors import BusError, ConfigError, ExitCode
@@ -141,7 +142,7 @@ def serve(
     loaded: LoadedConfig,
     socket_path: str | None = None,
     *,
-    on_ready: Callable[[Path, dict[str, Any]], None] | None = None,
+    on_ready: Callable[[Path, ServiceOut], None] | None = None,
 ) -> int:
     """Run the service until SIGTERM/SIGINT; return the process exit code.
 
@@ -181,7 +182,7 @@ def _run(
     sockets: list[socket.socket],
     token: str | None,
     path: Path,
-    on_ready: Callable[[Path, dict[str, Any]], None] | None,
+    on_ready: Callable[[Path, ServiceOut], None] | None,
 ) -> int:
     runtime = ServiceRuntime(loaded)
     runtime.socket_path = str(path)
@@ -209,7 +210,7 @@ def _run(
         log.warning("the embedded node was not seen within %.0f s; serving anyway", EMBEDDED_NODE_WAIT_S)
     log.info("listening on %s (pid %d)", path, os.getpid())
     if on_ready is not None:
-        on_ready(path, runtime.describe().model_dump())
+        on_ready(path, runtime.describe())
     try:
         asyncio.run(server.serve(sockets=sockets))
     finally:
