@@ -93,7 +93,7 @@ def _poll_status(service: Service, seconds: float) -> None:
     with service.client() as client:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
-            assert client.status()["state"] == "DISABLED"
+            assert client.status().state == "DISABLED"
             time.sleep(0.05)
 
 
@@ -194,7 +194,7 @@ def test_a_client_from_another_folder_finds_the_running_service() -> None:
             status = subprocess.run([sys.executable, "-m", "millctl", "status", "--json"], cwd=directory / "client-cwd",
                                     env=env, capture_output=True, text=True, timeout=60, check=False)
             assert status.returncode == 0, status.stderr
-            mill = json.loads(status.stdout)["mill"]
+            mill = json.loads(status.stdout)["result"]["mill"]
             assert mill["socket_path"] == str(sock) and mill["simulated"] is True
             assert (directory / "state" / "millctl" / "records" / "events.jsonl").exists()
             assert not (directory / "service-cwd" / "var").exists()
@@ -205,7 +205,7 @@ def test_a_client_from_another_folder_finds_the_running_service() -> None:
 
 def test_the_service_and_its_client_name_the_mill(own_service: Service) -> None:
     described = own_service.client().service()
-    assert described["simulated"] is True and described["socket_path"] == str(own_service.socket)
-    assert described["mill_name"] and described["bus_log"].startswith(str(own_service.records))
+    assert described.simulated is True and described.socket_path == str(own_service.socket)
+    assert described.mill_name and described.bus_log.startswith(str(own_service.records))
     assert "SIMULATED mill" in own_service.output()
-    assert described["warnings"] == []
+    assert described.warnings == []
