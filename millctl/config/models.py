@@ -44,6 +44,15 @@ class ModelVariant(enum.StrEnum):
     CORRECTED = "corrected"
 
 
+class CamShape(enum.StrEnum):
+    """The vibration cam's shape (docs/model.md#cam-shapes, :mod:`millctl.physics.cam`)."""
+
+    SINGLE = "single"
+    """The paper's circular eccentric: one lift stroke per cam revolution, r_d sin α."""
+    DOUBLE = "double"
+    """The paper's proposed elliptical double-acting cam: two strokes per revolution, r_d sin 2α."""
+
+
 class Material(_Strict):
     """Elastic and mass properties of a rod or vial material."""
 
@@ -96,6 +105,8 @@ class Cam(_Strict):
     """Cam eccentricity r_d, the vibration amplitude (mm)."""
     cam_to_vial_m: Annotated[float, Field(gt=0.0, le=5.0)]
     """Distance l from the cam centre to the vial centre at its highest point (m)."""
+    shape: CamShape = CamShape.SINGLE
+    """Circular single-acting (the paper's mill) or elliptical double-acting (its proposal)."""
 
     @property
     def eccentricity_m(self) -> float:
@@ -308,6 +319,7 @@ __all__ = [
     "G_M_S2",
     "Bus",
     "Cam",
+    "CamShape",
     "Drive",
     "Drives",
     "Furnace",

@@ -75,12 +75,12 @@ class FlightState:
     """True when the flight starts with the rod on the wall (departure: the wall gap has a triple root)."""
 
     def _alpha0(self, scene: Scene) -> float:
-        return scene.alpha0_rad + scene.omega_v_rad_s * self.t0_s
+        return scene.lift_alpha0_rad + scene.lift_omega_rad_s * self.t0_s
 
     def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
         """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
         tau = t_s - self.t0_s
-        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        r_d, w, g = scene.model.eccentricity_m, scene.lift_omega_rad_s, scene.model.g_m_s2
         a0 = self._alpha0(scene)
         h = -0.5 * g * tau * tau - r_d * (math.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
         dh = -g * tau - r_d * w * (math.cos(a0 + w * tau) - math.cos(a0))
@@ -89,7 +89,7 @@ class FlightState:
     def rel_array(self, scene: Scene, t_s: FloatArray) -> tuple[FloatArray, ...]:
         """Vectorised :meth:`rel`."""
         tau = t_s - self.t0_s
-        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        r_d, w, g = scene.model.eccentricity_m, scene.lift_omega_rad_s, scene.model.g_m_s2
         a0 = self._alpha0(scene)
         h = -0.5 * g * tau * tau - r_d * (np.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
         dh = -g * tau - r_d * w * (np.cos(a0 + w * tau) - math.cos(a0))
@@ -115,7 +115,7 @@ def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, t_s:
     inside the wall circle.
     """
     tau = t_s - flight.t0_s
-    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.omega_v_rad_s
+    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.lift_omega_rad_s
     r_d, g = scene.model.eccentricity_m, scene.model.g_m_s2
     a0 = flight._alpha0(scene)
     s_d, c_d = flight.y0_m / r0, flight.x0_m / r0

@@ -1,6 +1,6 @@
 """Level (b), node telemetry: a per-revolution summary cheap enough to run live.
 
-For K cam phases α0 (default 4, evenly spaced) one rod starts pinned at the
+For K cam phases α0 (default 4, evenly spaced over one lift cycle) one rod starts pinned at the
 lowest angle where it could possibly detach (sin θ = A/(g + c) for N/m = A − g_eff sin θ,
 g_eff ∈ [g − c, g + c]; the bottom when g − c < 0), with cam phase α0 there, and is
 followed with the exact engine through one revolution: detachment (eq. 7 or the
@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 from millctl.config.models import ModelVariant
 from millctl.errors import PhysicsInputError
+from millctl.physics.cam import strokes
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import RodState, WallState, depart
@@ -127,7 +128,8 @@ def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
         return None
     t_f = contact.time_s - det.time_s
     _, _, vx, vy = flight.rel(scene, contact.time_s)
-    vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
+    w_lift = scene.lift_omega_rad_s
+    vyc = model.eccentricity_m * w_lift * math.cos(scene.lift_alpha0_rad + w_lift * contact.time_s)
     speed_abs = math.hypot(vx, vy + vyc)
     on_wall = contact.partner == WALL
     energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, backed=True)  # partners are held
@@ -161,7 +163,8 @@ def revolution_summary(
         return _pinned(model, w_r, shear)
     samples = []
     for k in range(cam_phases):
-        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / cam_phases)
+        # evenly spaced lift phases: a double-acting cam repeats its lift twice per cam revolution
+        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / (cam_phases * strokes(model.cam)))
         result = _sample(scene)
         if result is not None:
             samples.append(result)
