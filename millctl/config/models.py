@@ -114,6 +114,12 @@ class Cam(_Strict):
         return self.eccentricity_mm * 1e-3
 
 
+class Powder(_Strict):
+    """The powder charge in the vial (for the specific energy dose, J per g)."""
+
+    charge_g: Annotated[float, Field(gt=0.0, le=10_000.0)] = 20.0
+
+
 class Spring(_Strict):
     """The four springs between the platforms, as one equivalent stiffness."""
 
@@ -137,6 +143,7 @@ class Mill(_Strict):
     vial: Vial
     cam: Cam
     spring: Spring
+    powder: Powder = Powder()
 
     @model_validator(mode="after")
     def _rods_fit(self) -> Mill:
@@ -330,6 +337,7 @@ __all__ = [
     "MillConfig",
     "Model",
     "ModelVariant",
+    "Powder",
     "Rods",
     "Service",
     "Spring",
