@@ -83,13 +83,21 @@ def _shutdown(node: Node, tick_s: float) -> None:
     while not node.at_standstill and time.monotonic() < deadline:
         node.tick()
         time.sleep(tick_s)
+    counts = node.reader.counts
     log.info(
-        "shut down: speeds %.1f/%.1f rpm, heater %s, %d ticks, mean %.3f ms, max %.3f ms",
+        "shut down: speeds %.1f/%.1f rpm, heater %s, %d ticks, mean %.3f ms, max %.3f ms; "
+        "frames read %d (E-stops %d, malformed %d, error frames %d), receive errors %d, capped drains %d",
         *node.true_speeds_rpm,
         "on" if node.heater_on else "off",
         node.tick_count,
         node.tick_mean_s * 1e3,
         node.tick_max_s * 1e3,
+        counts.frames,
+        counts.estops,
+        counts.malformed,
+        counts.error_frames,
+        counts.receive_errors,
+        counts.capped_drains,
     )
 
 

@@ -25,10 +25,15 @@ class LinkMonitor:
     """E2E receivers for the controller's frames and the heartbeat watchdog (times in s)."""
 
     def __init__(self, config: MillConfig) -> None:
-        limit = config.interlock.e2e_error_limit
+        interlock = config.interlock
         self.timeout_s = config.timing.watchdog_timeout_s
         self.receivers: dict[type[MillMessage], E2EReceiver] = {
-            kind: E2EReceiver(error_limit=limit, name=kind.__name__) for kind in GUARDED
+            kind: E2EReceiver(
+                error_limit=interlock.e2e_error_limit,
+                name=kind.__name__,
+                sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+            )
+            for kind in GUARDED
         }
         self.last_heartbeat_s: float | None = None
         """When the last fresh heartbeat arrived (s, node clock); None before the first."""
@@ -40,11 +45,12 @@ class LinkMonitor:
         status = receiver.check(decoded)
         if not status.fresh:
             log.debug(
-                "%s frame %s (counter %s, E2E score %d)",
+                "%s frame %s (counter %s, E2E score %d, sequence score %d)",
                 decoded.kind.__name__,
                 status.value,
                 decoded.counter,
                 receiver.score,
+                receiver.sequence_score,
             )
         elif decoded.kind is Heartbeat:
             self.last_heartbeat_s = now_s
@@ -63,7 +69,7 @@ class LinkMonitor:
     def reset_scores(self) -> None:
         """Clear the error scores (after an accepted RESET); counters resynchronise on the next frame."""
         for receiver in self.receivers.values():
-            receiver.score = 0
+            receiver.clear_scores()
 
 
 __all__ = ["GUARDED", "LinkMonitor"]

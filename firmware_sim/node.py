@@ -25,9 +25,9 @@ from firmware_sim.telemetry import PhysicsCache, PhysicsWorker, Schedule
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.protocol import (
-    ESTOP_ID,
     NO_FAULTS,
     AliveCounter,
+    BusReader,
     Codec,
     Command,
     CommandCode,
@@ -77,6 +77,7 @@ class Node:
         self.drives = DrivePair(config, np.random.default_rng(seed))
         self.furnace = FurnaceModel(config.furnace, config.timing.node_tick_s)
         self.faults = FaultInjector(config, self.drives, self.furnace, enabled=fault_injection, seed=seed)
+        self.reader = BusReader(bus, "node")
         self.link = LinkMonitor(config)
         self.monitor = SpeedMonitor(config, self.envelope)
         self.motion = Motion(config, self.envelope)
@@ -174,20 +175,19 @@ class Node:
     # -- the tick -------------------------------------------------------------------------------------
 
     def tick(self) -> None:
-        """One node cycle: frames (E-stop first), physics, safety checks, periodic frames."""
+        """One node cycle: every waiting frame (an E-stop acted on first), physics, safety checks, periodic frames."""
         started = time.perf_counter()
         now = self.clock.now()
         dt = 0.0 if self._last_tick_s is None else max(now - self._last_tick_s, 0.0)
         self._last_tick_s = now
-        frames = self._drain()
-        if any(frame.arbitration_id == ESTOP_ID and not frame.is_error_frame for frame in frames):
+        batch = self.reader.drain()
+        if batch.estop:
             self._latch(FaultFlag.ESTOP, "E-stop frame received", now)
         command = self.motion.command(now)
         self.drives.step(command.omega_r_rpm, command.omega_v_rpm, dt)
         self.furnace.step(dt)
-        for frame in frames:
-            if frame.arbitration_id != ESTOP_ID:
-                self._handle(frame, now)
+        for frame in batch.frames:
+            self._handle(frame, now)
         self._checks(now, dt)
         self._transmit(now, dt)
         elapsed = time.perf_counter() - started
@@ -195,19 +195,11 @@ class Node:
         self._tick_total_s += elapsed
         self._tick_max_s = max(self._tick_max_s, elapsed)
 
-    def _drain(self) -> list[can.Message]:
-        frames: list[can.Message] = []
-        while True:
-            frame = self.bus.recv(timeout=0)
-            if frame is None:
-                return frames
-            frames.append(frame)
-
     def _handle(self, frame: can.Message, now: float) -> None:
         try:
             decoded = self.codec.decode(frame)
         except ProtocolError as exc:
-            log.debug("ignoring frame: %s", exc)
+            self.reader.malformed(frame, exc)
             return
         if decoded.kind is SimFault:
             if isinstance(decoded.message, SimFault):

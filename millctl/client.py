@@ -311,10 +311,16 @@ class Client(_Base):
         rotary_rate_rpm_s: float | None = None,
         vibration_rate_rpm_s: float | None = None,
         linear: bool = False,
+        temp_c: float | None = None,
+        rate_c_per_min: float | None = None,
     ) -> dict[str, Any]:
-        """Ramp to new speeds (rpm; needs control); an :class:`InterlockRefusal` when outside the envelope."""
+        """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing (needs control).
+
+        An :class:`InterlockRefusal` when any part is outside the envelope: then no part is applied.
+        """
         body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "rotary_rate_rpm_s": rotary_rate_rpm_s,
-                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear}
+                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear, "temp_c": temp_c,
+                "rate_c_per_min": rate_c_per_min}
         return dict(self._call("POST", "/v1/setpoints", body))
 
     def set_furnace(self, temp_c: float | None, *, rate_c_per_min: float | None = None) -> dict[str, Any]:
@@ -462,10 +468,13 @@ class AsyncClient(_Base):
         rotary_rate_rpm_s: float | None = None,
         vibration_rate_rpm_s: float | None = None,
         linear: bool = False,
+        temp_c: float | None = None,
+        rate_c_per_min: float | None = None,
     ) -> dict[str, Any]:
-        """Ramp to new speeds (rpm)."""
+        """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing."""
         body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "rotary_rate_rpm_s": rotary_rate_rpm_s,
-                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear}
+                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear, "temp_c": temp_c,
+                "rate_c_per_min": rate_c_per_min}
         return dict(await self._call("POST", "/v1/setpoints", body))
 
     async def set_furnace(self, temp_c: float | None, *, rate_c_per_min: float | None = None) -> dict[str, Any]:

@@ -82,7 +82,8 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
             "rod": event.rod,
             "partner": "wall" if event.partner < 0 else f"rod {event.partner}",
             "time_s": event.time_s,
-            "flight_time_s": event.time_s - t_d,
+            # exact: the flight's own clock; the stepped methods only have absolute times
+            "flight_time_s": event.flight_time_s if math.isfinite(event.flight_time_s) else event.time_s - t_d,
             "contact_x_m": event.x_m,
             "contact_y_m": event.y_m,
             "normal_velocity_m_s": event.normal_velocity_m_s,

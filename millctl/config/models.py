@@ -222,7 +222,11 @@ class Interlock(_Strict):
     min_stale_s: Annotated[float, Field(gt=0.0, le=60.0)] = 1.0
     """A node frame is stale after max(stale_periods × its period, min_stale_s)."""
     e2e_error_limit: Annotated[int, Field(ge=1, le=100)] = 5
-    """Net E2E error score that faults a link."""
+    """Net E2E error score, and sequence score, that fault a link."""
+    e2e_sequence_decay_frames: Annotated[int, Field(ge=1, le=1000)] = 16
+    """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
+    startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
+    """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
 
 
 class Timing(_Strict):

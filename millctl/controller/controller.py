@@ -25,8 +25,8 @@ from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
 from millctl.errors import InterlockError
 from millctl.protocol import (
-    ESTOP_ID,
     AliveCounter,
+    BusReader,
     Codec,
     Command,
     CommandCode,
@@ -91,6 +91,7 @@ class Controller:
         self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(self.codec, config.interlock)
+        self.reader = BusReader(bus, "controller")
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
         self._counters: dict[type[MillMessage], AliveCounter] = {
             kind: AliveCounter() for kind in (Heartbeat, Setpoints, Command)
@@ -110,8 +111,6 @@ class Controller:
         self._last_tick_s = clock.now()
         self._next_heartbeat_s = clock.now()
         self._next_setpoints_s = clock.now()
-        self.invalid_frames = 0
-        self.foreign_estops = 0
 
     # ------------------------------------------------------------------ state
     @property
@@ -204,10 +203,18 @@ class Controller:
         rotary_rate_rpm_s: float | None = None,
         vibration_rate_rpm_s: float | None = None,
         linear: bool = False,
+        furnace_c: float | None = None,
+        heating_rate_c_per_min: float | None = None,
         source: str = "operator",
     ) -> Trajectory:
-        """Plan a ramp to new speeds and start it; refuse (nothing sent) when it would leave the envelope."""
+        """Plan a ramp to new speeds (and, with ``furnace_c``, a furnace target) and start it.
+
+        All or nothing: every part is checked before any is applied, so a
+        refused furnace target leaves the speeds untouched and the other way
+        round (InterlockRefused, nothing sent).
+        """
         self._require({S.ARMED, S.RUNNING}, "set speeds", source)
+        rate_c_per_min = None if furnace_c is None else self._check_furnace(furnace_c, heating_rate_c_per_min, source)
         target = SpeedPoint(rotary_rpm, vibration_rpm)
         try:
             if linear:
@@ -228,6 +235,8 @@ class Controller:
             vibration_rpm=move.end.omega_v_rpm,
             duration_s=move.duration_s,
         )
+        if furnace_c is not None and rate_c_per_min is not None:
+            self._apply_furnace(furnace_c, rate_c_per_min, source)
         return move
 
     def set_furnace(
@@ -239,17 +248,26 @@ class Controller:
             self._emit(EventKind.COMMAND, source, "heater off")
             return
         self._require({S.ARMED, S.RUNNING}, "set the furnace", source)
+        self._apply_furnace(temp_c, self._check_furnace(temp_c, rate_c_per_min, source), source)
+
+    def _check_furnace(self, temp_c: float, rate_c_per_min: float | None, source: str) -> float:
+        """Check a furnace target and heating rate (°C, °C/min); return the rate in force, or refuse."""
         rate = self.config.furnace.max_heating_rate_c_per_min if rate_c_per_min is None else rate_c_per_min
         for verdict in (self.envelope.check(0.0, 0.0, temp_c), self.envelope.check_heating_rate(rate)):
             if not verdict.ok:
                 self._emit(EventKind.REFUSAL, source, verdict.reason(), temp_c=temp_c)
                 raise InterlockRefused(verdict, "furnace setpoint")
+        return rate
+
+    def _apply_furnace(self, temp_c: float, rate_c_per_min: float, source: str) -> None:
         if self.furnace_target_c is None:  # ramp from where the furnace is
             furnace = self.furnace
             self.furnace_setpoint_c = furnace.temp_c if furnace is not None else self.config.furnace.ambient_temp_c
         self.furnace_target_c = temp_c
-        self.heating_rate_c_per_min = rate
-        self._emit(EventKind.COMMAND, source, f"furnace to {temp_c:.1f} °C at {rate:.1f} °C/min", temp_c=temp_c)
+        self.heating_rate_c_per_min = rate_c_per_min
+        self._emit(
+            EventKind.COMMAND, source, f"furnace to {temp_c:.1f} °C at {rate_c_per_min:.1f} °C/min", temp_c=temp_c
+        )
 
     def stop(self, source: str = "operator", reason: str = "operator request") -> None:
         """Controlled stop (category 1): the node ramps both drives down inside the envelope, heater off."""
@@ -325,24 +343,32 @@ class Controller:
         self._transmit(now)
 
     def _drain(self, now: float) -> None:
-        while True:
-            frame = self.bus.recv(timeout=0.0)
-            if frame is None:
-                return
-            if frame.arbitration_id == ESTOP_ID and not frame.is_extended_id:
-                self.foreign_estops += 1
-                continue  # the node trips on it and reports; we see it in NodeStatus
+        """Read every frame waiting (SAFETY 22); bad input is counted by the reader, never raised (SAFETY 19)."""
+        batch = self.reader.drain()
+        # an E-stop from anyone is the node's to act on; it reports it in NodeStatus and we trip on that
+        for frame in batch.frames:
             try:
                 decoded = self.codec.decode(frame)
             except ProtocolError as exc:
-                self.invalid_frames += 1
-                log.debug("ignored frame: %s", exc)
+                self.reader.malformed(frame, exc)
                 continue
             message = self.tracker.accept(decoded, now)
+            if message is not None:
+                self.tracker.connected(now)
             if isinstance(message, NodeStatus):
                 self._on_node_status(message)
             elif isinstance(message, DriveTelemetry):
                 self._on_measured(message)
+
+    @property
+    def invalid_frames(self) -> int:
+        """Frames read that do not fit the DBC (counted by the bus reader)."""
+        return self.reader.counts.malformed
+
+    @property
+    def foreign_estops(self) -> int:
+        """E-stop frames read from other senders (the node acts on them)."""
+        return self.reader.counts.estops
 
     def _on_node_status(self, status: NodeStatus) -> None:
         state, node = self.state, status.state

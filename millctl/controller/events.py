@@ -2,22 +2,12 @@
 
 from __future__ import annotations
 
-import enum
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-
-class EventKind(enum.StrEnum):
-    """What happened."""
-
-    STATE = "state"
-    COMMAND = "command"
-    REFUSAL = "refusal"
-    TRIP = "trip"
-    NODE = "node"
-    CONFIG = "config"
+from millctl.api.enums import EventKind
 
 
 @dataclass(frozen=True)

@@ -13,25 +13,14 @@ A trip latches: only RESET leaves TRIPPED (docs/safety.md#what-trips).
 
 from __future__ import annotations
 
-import enum
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from millctl.api.enums import ControllerState
 from millctl.errors import InterlockError
 
 log = logging.getLogger(__name__)
-
-
-class ControllerState(enum.StrEnum):
-    """States of the controller (docs/safety.md#state-machine)."""
-
-    DISCONNECTED = "DISCONNECTED"
-    DISABLED = "DISABLED"
-    ARMED = "ARMED"
-    RUNNING = "RUNNING"
-    STOPPING = "STOPPING"
-    TRIPPED = "TRIPPED"
 
 
 S = ControllerState

@@ -52,6 +52,11 @@ class Status:
     shear_kpa: float | None
     link: dict[str, dict[str, object]]
     invalid_frames: int
+    """Frames read that do not fit the DBC (malformed, unknown, FD, remote): counted and dropped."""
+    receive_errors: int
+    """Reads that failed (undecodable datagrams, socket errors) plus CAN error frames: counted, skipped."""
+    bus_receive: dict[str, int | str]
+    """Every count of the controller's bus reader (:class:`millctl.protocol.ReceiveCounts`)."""
 
     def as_dict(self) -> dict[str, Any]:
         """The snapshot as a JSON-ready dict."""
@@ -106,6 +111,8 @@ def build_status(c: Controller) -> Status:
         shear_kpa=physics.shear_kpa if physics else None,
         link=c.tracker.health(now),
         invalid_frames=c.invalid_frames,
+        receive_errors=c.reader.counts.receive_errors + c.reader.counts.error_frames,
+        bus_receive=c.reader.counts.as_dict(),
     )
 
 

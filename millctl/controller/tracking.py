@@ -2,7 +2,11 @@
 
 A node frame older than its bound — max(stale_periods × its DBC period,
 min_stale_s) — is stale, and stale telemetry trips the controller
-(docs/safety.md#stale-telemetry).
+(docs/safety.md#stale-telemetry). At start-up the node's streams begin at
+their own phases: a stream not yet received is judged from the moment the
+node was first seen, with the bound max(its stale bound,
+``interlock.startup_grace_s``), so that a start never trips on a stream that
+is merely late, while one that never comes is still a fault.
 """
 
 from __future__ import annotations
@@ -54,9 +58,25 @@ class TelemetryTracker:
         self.tracks: dict[type[MillMessage], Track] = {}
         for kind in TRACKED:
             period = codec.cycle_time_s(kind) or 1.0
-            receiver = E2EReceiver(error_limit=interlock.e2e_error_limit, name=kind.__name__) if kind.E2E else None
+            receiver = (
+                E2EReceiver(
+                    error_limit=interlock.e2e_error_limit,
+                    name=kind.__name__,
+                    sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+                )
+                if kind.E2E
+                else None
+            )
             bound = max(interlock.stale_periods * period, interlock.min_stale_s)
             self.tracks[kind] = Track(kind, bound, receiver)
+        self.startup_grace_s = interlock.startup_grace_s
+        self.connected_s: float | None = None
+        """When the node was first seen (s); streams not yet received are judged from then."""
+
+    def connected(self, now_s: float) -> None:
+        """The node has been seen: start the clock of the streams not yet received."""
+        if self.connected_s is None:
+            self.connected_s = now_s
 
     def accept(self, decoded: Decoded, now_s: float) -> MillMessage | None:
         """Classify a decoded node frame; return its message when fresh, else None."""
@@ -82,18 +102,22 @@ class TelemetryTracker:
         for kind in SAFETY_RELEVANT:
             track = self.tracks[kind]
             age = track.age_s(now_s)
-            if age > track.stale_after_s:
-                shown = "never received" if math.isinf(age) else f"age {age:.2f} s"
-                reasons.append(f"{kind.__name__} stale: {shown} > bound {track.stale_after_s:.2f} s")
+            if not track.frames:
+                since_s = now_s - (now_s if self.connected_s is None else self.connected_s)
+                bound = max(track.stale_after_s, self.startup_grace_s)
+                if since_s > bound:
+                    reasons.append(
+                        f"{kind.__name__} stale: never received in {since_s:.2f} s since the node was seen "
+                        f"> bound {bound:.2f} s (interlock.startup_grace_s)"
+                    )
+            elif age > track.stale_after_s:
+                reasons.append(f"{kind.__name__} stale: age {age:.2f} s > bound {track.stale_after_s:.2f} s")
         return reasons
 
     def link_faults(self) -> list[str]:
         """Why a link is faulted by E2E errors (empty when healthy)."""
-        return [
-            f"{t.kind.__name__} E2E error score {t.receiver.score} ≥ limit {t.receiver.error_limit}"
-            for t in self.tracks.values()
-            if t.receiver is not None and t.receiver.faulted
-        ]
+        reasons = (t.receiver.fault_reason() for t in self.tracks.values() if t.receiver is not None)
+        return [reason for reason in reasons if reason is not None]
 
     def reset_links(self) -> None:
         """Forget E2E history (after an explicit reset)."""
@@ -113,6 +137,7 @@ class TelemetryTracker:
                 "frames": track.frames,
                 "e2e": dict(track.counts),
                 "e2e_score": track.receiver.score if track.receiver else 0,
+                "e2e_sequence_score": track.receiver.sequence_score if track.receiver else 0,
             }
         return result
 

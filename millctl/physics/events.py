@@ -62,6 +62,9 @@ class Contact:
     """Approach speed along the normal (> 0 approaching)."""
     tangential_velocity_m_s: float
     """Sliding speed of the rod's surface against the partner's (m/s)."""
+    flight_time_s: float = math.nan
+    """Time since the rod's flight began (departure or last bounce), τ (s): the root itself, located in
+    the flight's own clock, never the difference of two absolute times (docs/model.md, eq. 10)."""
 
 
 def scan_step_s(scene: Scene) -> float:
@@ -152,7 +155,7 @@ def first_contact_time(
         flight = a
 
         def sign_sep(t: float) -> float:
-            return departure_wall_gap(scene, flight, n_d_m2_s2, t)
+            return departure_wall_gap(scene, flight, n_d_m2_s2, t - flight.t0_s)
 
     if sign_sep(t_start_s) <= 0.0:
         return t_start_s
@@ -187,8 +190,10 @@ def first_contact_time(
     return None
 
 
-def contact_kinematics(scene: Scene, states: list[RodState], rod: int, partner: int, t_s: float) -> Contact:
-    """Normal and tangential relative velocities of ``rod`` against ``partner`` at t."""
+def contact_kinematics(
+    scene: Scene, states: list[RodState], rod: int, partner: int, t_s: float, flight_time_s: float = math.nan
+) -> Contact:
+    """Normal and tangential relative velocities of ``rod`` against ``partner`` at t (τ = ``flight_time_s``)."""
     x, y, vx, vy = states[rod].rel(scene, t_s)
     if partner == WALL:
         r = math.hypot(x, y)
@@ -204,7 +209,7 @@ def contact_kinematics(scene: Scene, states: list[RodState], rod: int, partner: 
         rvx, rvy = vx - vxb, vy - vyb
     v_n = rvx * nx + rvy * ny
     v_t = -rvx * ny + rvy * nx
-    return Contact(t_s, rod, partner, nx, ny, v_n, v_t)
+    return Contact(t_s, rod, partner, nx, ny, v_n, v_t, flight_time_s)
 
 
 def earliest_contact(
@@ -225,7 +230,8 @@ def earliest_contact(
     that involve those rods (default: every flying rod). ``n_d`` maps a rod that
     departs from the wall at t_start to r0·N_true/m there. Pairs (i < j) in
     ``excluded`` are not tested. ``tol_s`` is the root finder's absolute time
-    tolerance (0: ≈ 4 ulp).
+    tolerance (0: ≈ 4 ulp). Roots are found in each mover's own clock τ = t − t_0
+    (:attr:`Contact.flight_time_s`), so a short flight late in a run keeps its digits.
     """
     n_d = n_d or {}
     flying = [i for i, s in enumerate(states) if isinstance(s, FlightState)]
@@ -241,6 +247,7 @@ def earliest_contact(
                 seen.add(key)
                 pairs.append((i, j))
     funcs = [_pair_functions(scene, states, i, j, t_start_s, n_d.get(i, 0.0)) for i, j in pairs]
+    t_ref = [states[i].t0_s for i, _ in pairs]
     h = scan_step_s(scene)
     accel = 2.0 * _accel_bound(scene)
     r0 = scene.model.r0_m
@@ -264,9 +271,9 @@ def earliest_contact(
     s0, ds0, _ = pair_arrays(np.array([t_start_s]))
     s_prev, ds_prev = s0[:, 0], ds0[:, 0]
     for idx, (i, j) in enumerate(pairs):
-        value = funcs[idx][0](t_start_s) if funcs[idx][0] is not funcs[idx][1] else s_prev[idx]
+        value = funcs[idx][0](t_start_s - t_ref[idx]) if funcs[idx][0] is not funcs[idx][1] else s_prev[idx]
         if value <= 0.0:
-            return contact_kinematics(scene, states, i, j, t_start_s)
+            return contact_kinematics(scene, states, i, j, t_start_s, t_start_s - t_ref[idx])
     t_prev = t_start_s
     while t_prev < t_end_s:
         ts = np.minimum(t_prev + h * np.arange(1, _SCAN_SAMPLES + 1), t_end_s)
@@ -281,17 +288,18 @@ def earliest_contact(
         crossing = sep <= 0.0
         minimum = (ds_before < 0.0) & (dsep > 0.0) & (np.minimum(s_before, sep) <= margin)
         candidates = (crossing | minimum | near_zero) & (ts > t_before)[None, :]
-        best: tuple[float, int] | None = None
+        best: tuple[float, int, float] | None = None  # (t, pair, τ)
         for k in sorted(set(np.flatnonzero(candidates.any(axis=0)).tolist())):
             if best is not None and t_before[k] >= best[0]:
                 break
             for p in np.flatnonzero(candidates[:, k]):
-                t_hit = _resolve(funcs[p], float(t_before[k]), float(ts[k]), tol_s)
-                if t_hit is not None and (best is None or t_hit < best[0]):
-                    best = (t_hit, int(p))
+                ref = t_ref[p]
+                tau_hit = _resolve(funcs[p], float(t_before[k]) - ref, float(ts[k]) - ref, tol_s)
+                if tau_hit is not None and (best is None or ref + tau_hit < best[0]):
+                    best = (ref + tau_hit, int(p), tau_hit)
         if best is not None:
             i, j = pairs[best[1]]
-            return contact_kinematics(scene, states, i, j, best[0])
+            return contact_kinematics(scene, states, i, j, best[0], best[2])
         t_prev, s_prev, ds_prev = float(ts[-1]), sep[:, -1], dsep[:, -1]
     return None
 
@@ -316,20 +324,46 @@ def _all_positions(scene: Scene, states: list[RodState], ts: np.ndarray) -> tupl
 def _pair_functions(
     scene: Scene, states: list[RodState], i: int, j: int, t_start_s: float, n_d_m2_s2: float
 ) -> tuple[Callable[[float], float], Callable[[float], float], Callable[[float], float]]:
-    """(sign function, separation, its derivative) of one pair; the sign function divides out a departure root."""
+    """(sign function, separation, its derivative) of one pair, all functions of the mover's τ = t − t_0.
+
+    The mover ``i`` is a flying rod; its position comes from its own clock τ and its
+    partner's from t_0 + τ. The sign function divides out a departure root.
+    """
     a = states[i]
+    assert isinstance(a, FlightState)
+    flight, t0 = a, a.t0_s
     if j != WALL:
-        sep, dsep = _rod_sep(scene, a, states[j])
-        return sep, sep, dsep
-    sep, dsep = _wall_sep(scene, a)
-    if isinstance(a, FlightState) and a.from_wall and a.t0_s == t_start_s:
-        flight = a
+        b = states[j]
+        c2 = scene.model.contact_distance_m**2
 
-        def reduced(t: float) -> float:
-            return departure_wall_gap(scene, flight, n_d_m2_s2, t)
+        def rod_sep(tau: float) -> float:
+            xa, ya, _, _ = flight.rel_tau(scene, tau)
+            xb, yb, _, _ = b.rel(scene, t0 + tau)
+            return (xa - xb) ** 2 + (ya - yb) ** 2 - c2
 
-        return reduced, sep, dsep
-    return sep, sep, dsep
+        def rod_dsep(tau: float) -> float:
+            xa, ya, vxa, vya = flight.rel_tau(scene, tau)
+            xb, yb, vxb, vyb = b.rel(scene, t0 + tau)
+            return 2.0 * ((xa - xb) * (vxa - vxb) + (ya - yb) * (vya - vyb))
+
+        return rod_sep, rod_sep, rod_dsep
+    r0sq = scene.model.r0_m**2
+
+    def wall_sep(tau: float) -> float:
+        x, y, _, _ = flight.rel_tau(scene, tau)
+        return r0sq - (x * x + y * y)
+
+    def wall_dsep(tau: float) -> float:
+        x, y, vx, vy = flight.rel_tau(scene, tau)
+        return -2.0 * (x * vx + y * vy)
+
+    if flight.from_wall and t0 == t_start_s:
+
+        def reduced(tau: float) -> float:
+            return departure_wall_gap(scene, flight, n_d_m2_s2, tau)
+
+        return reduced, wall_sep, wall_dsep
+    return wall_sep, wall_sep, wall_dsep
 
 
 def _resolve(
@@ -338,7 +372,7 @@ def _resolve(
     b: float,
     tol_s: float = 0.0,
 ) -> float | None:
-    """Exact contact time in [a, b] for one candidate interval, or None (a minimum that stays apart)."""
+    """Exact contact time in [a, b] (the mover's τ) for one candidate interval, or None (a minimum that stays apart)."""
     sign_sep, _, dsep = funcs
     if sign_sep(b) <= 0.0:
         return _root(sign_sep, a, b, tol_s)

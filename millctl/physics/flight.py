@@ -79,7 +79,15 @@ class FlightState:
 
     def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
         """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
-        tau = t_s - self.t0_s
+        return self.rel_tau(scene, t_s - self.t0_s)
+
+    def rel_tau(self, scene: Scene, tau_s: float) -> tuple[float, float, float, float]:
+        """(x, y, vx, vy) relative to the vial centre at τ = t − t_0 after the flight began (m, m/s).
+
+        The event search works in τ, so a flight time is resolved to its own rounding
+        and never formed as the difference of two absolute times (docs/model.md, eq. 10).
+        """
+        tau = tau_s  # the flight's own clock
         r_d, w, g = scene.model.eccentricity_m, scene.lift_omega_rad_s, scene.model.g_m_s2
         a0 = self._alpha0(scene)
         h = -0.5 * g * tau * tau - r_d * (math.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
@@ -106,15 +114,15 @@ def depart(scene: Scene, wall: WallState, t_d_s: float) -> FlightState:
     return FlightState(t_d_s, x, y, vx, vy, from_wall=True)
 
 
-def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, t_s: float) -> float:
+def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, tau_s: float) -> float:
     """(r0² − |d|²)/τ² for a departing rod, or /τ³ when N_d = 0 (the triple root divided out).
 
     ``n_d_m2_s2`` is r0·N_true(t_d)/m, the τ⁰ coefficient of (|d|² − r0²)/τ²: 0 by
     construction in the corrected variant, where it is dropped exactly so that
     rounding cannot fake a collision at departure. Positive while the rod is
-    inside the wall circle.
+    inside the wall circle. ``tau_s`` is the time since departure, τ = t − t_d (s).
     """
-    tau = t_s - flight.t0_s
+    tau = tau_s  # the flight's own clock
     r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.lift_omega_rad_s
     r_d, g = scene.model.eccentricity_m, scene.model.g_m_s2
     a0 = flight._alpha0(scene)

@@ -56,6 +56,8 @@ class ImpactEvent:
     method: str
     tangential_velocity_m_s: float = math.nan
     """Sliding speed of the rod's surface against the partner's (m/s)."""
+    flight_time_s: float = math.nan
+    """Time since the rod's flight began (s), carried as its own number by ``exact``; nan for the others."""
 
 
 def _event(scene: Scene, method: str, row: ContactRow) -> ImpactEvent:
@@ -104,6 +106,7 @@ def first_impact(
             float(r["energy_j"]),
             method,
             float(r["tangential_velocity_m_s"]),
+            float(r["flight_time_s"]),
         )
     if method == "ivp":
         row = ivp_first_contact(scene, 1e-10 if tol is None else tol, t_end_s)

@@ -134,7 +134,7 @@ def _record(run: _Run, c: Contact) -> None:
     backed = c.partner == WALL or isinstance(run.states[c.partner], WallState)
     energy = impact_energy_j(model, c.normal_velocity_m_s, speed, backed)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * c.time_s) % (2.0 * math.pi)
-    flight = c.time_s - s.t0_s
+    flight = c.flight_time_s  # located in the flight's own clock, not t_contact − t_0
     velocities = (c.normal_velocity_m_s, c.tangential_velocity_m_s, speed)
     run.impacts.append((c.time_s, c.rod, c.partner, px, py, math.atan2(y, x), alpha, *velocities, energy, flight))
 
@@ -170,9 +170,8 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         rod = run.next_detach.index(t_det)
         _depart(run, rod, t_det)
         return t_det
-    s = run.states[contact.rod]
     if contact.partner == WALL:
-        zero_length = contact.time_s == s.t0_s
+        zero_length = contact.flight_time_s == 0.0
         if not zero_length:
             _record(run, contact)
         _repin(run, contact.rod, contact.time_s, rearm=zero_length)

@@ -126,7 +126,7 @@ def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
     contact = earliest_contact(scene, states, det.time_s, det.time_s + _FLIGHT_CAP_S, {0: n_d}, rods=[0])
     if contact is None:
         return None
-    t_f = contact.time_s - det.time_s
+    t_f = contact.flight_time_s  # the root in the flight's own clock: no cancellation of t_contact − t_d
     _, _, vx, vy = flight.rel(scene, contact.time_s)
     w_lift = scene.lift_omega_rad_s
     vyc = model.eccentricity_m * w_lift * math.cos(scene.lift_alpha0_rad + w_lift * contact.time_s)

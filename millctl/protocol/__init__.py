@@ -37,6 +37,7 @@ from millctl.protocol.messages import (
     SimFault,
     SimFaultCode,
 )
+from millctl.protocol.receive import Batch, BusReader, ReceiveCounts, is_estop
 
 __all__ = [
     "DBC_NAME",
@@ -45,7 +46,9 @@ __all__ = [
     "NO_FAULTS",
     "SIM_CONTROL_IDS",
     "AliveCounter",
+    "Batch",
     "BusLoad",
+    "BusReader",
     "Codec",
     "Command",
     "CommandCode",
@@ -65,6 +68,7 @@ __all__ = [
     "NodeStatus",
     "PhysicsTelemetry",
     "ProtocolError",
+    "ReceiveCounts",
     "RefusalCode",
     "RotatingBusLog",
     "Setpoints",
@@ -76,5 +80,6 @@ __all__ = [
     "crc8_sae_j1850",
     "default_codec",
     "e2e_crc",
+    "is_estop",
     "open_bus",
 ]

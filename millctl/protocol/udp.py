@@ -11,6 +11,9 @@ listen in):
   the stock interface does, because the host loops multicast back to every
   member of the group. This bus sends from a socket of its own (an ephemeral
   port) and drops every received datagram from that port.
+- **Room between drains.** Its receive socket asks for a 1 MiB buffer
+  (``receive_buffer_bytes``; the kernel caps it at ``net.core.rmem_max``),
+  so a burst of about a thousand datagrams between two drains is not lost.
 - **Never off the host.** It refuses to open unless ``hop_limit`` (the IPv4
   TTL / IPv6 hop limit) is 0, so no frame is ever forwarded by a router; and
   by default it also refuses unless ``lo`` is the only network interface (a
@@ -38,6 +41,8 @@ INTERFACE_NAME = "millctl_udp_multicast"
 DEFAULT_GROUP = "239.74.163.2"
 """An administratively scoped IPv4 group (the same as python-can's IPv4 default)."""
 DEFAULT_PORT = 43113
+RECEIVE_BUFFER_BYTES = 1 << 20
+"""Receive buffer asked for (bytes; the kernel caps it at net.core.rmem_max): ~1000 datagrams between two drains."""
 
 
 def private_netns_problem() -> str | None:
@@ -82,6 +87,7 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
         receive_own_messages: bool = False,
         fd: bool = False,
         private_netns_only: bool = True,
+        receive_buffer_bytes: int = RECEIVE_BUFFER_BYTES,
         **kwargs: Any,
     ) -> None:
         if hop_limit is None:
@@ -95,6 +101,7 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
         family = socket.AF_INET if group.version == 4 else socket.AF_INET6
         self._tx = socket.socket(family, socket.SOCK_DGRAM)
         try:
+            self._multicast._socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer_bytes)
             if family == socket.AF_INET:
                 self._tx.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 0)
                 self._tx.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
@@ -109,6 +116,8 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
         self._tx_port: int = self._tx.getsockname()[1]
         self._destination = (channel, port)
         self._tx_timeout: float | None = None
+        self.receive_buffer_bytes: int = self._multicast._socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        """The receive buffer the kernel granted (bytes; Linux reports twice what it was asked, up to its cap)."""
         self.channel_info = f"{INTERFACE_NAME} {channel}:{port} (TTL 0, no self-echo)"
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
@@ -129,6 +138,16 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
             raise can.CanTimeoutError()
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        """The next datagram that is not this bus's own echo, waiting at most ``timeout`` for it.
+
+        Own echoes are dropped *inside* this loop, so a call with timeout 0
+        reads past every echo already queued and returns None only when
+        nothing foreign is left (a drain empties the socket however many
+        frames this bus sent since the last one: SAFETY.md item 22). A
+        datagram that is not a frame raises ``CanOperationError`` (it is
+        consumed; the next call reads on); a frame is handed on as it came
+        (an FD or remote frame, say) for the receiver's codec to judge.
+        """
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             left = None if deadline is None else max(0.0, deadline - time.monotonic())
@@ -138,14 +157,13 @@ class EchoFreeUdpMulticastBus(UdpMulticastBus):
             data, sender, timestamp = result
             if sender[1] != self._tx_port:
                 break
-            if deadline is not None and time.monotonic() >= deadline:
-                return None, False
         try:
             message = unpack_message(data, replace={"timestamp": timestamp}, check=True)
         except Exception as exc:
-            raise can.CanOperationError(f"{INTERFACE_NAME}: could not unpack a received datagram") from exc
-        if message.is_fd and self._can_protocol != can.CanProtocol.CAN_FD:
-            return None, False
+            raise can.CanOperationError(
+                f"{INTERFACE_NAME}: undecodable datagram of {len(data)} bytes from {sender[0]}:{sender[1]}: "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
         return message, False
 
     def shutdown(self) -> None:

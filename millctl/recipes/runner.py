@@ -15,13 +15,13 @@ Run states::
 
 from __future__ import annotations
 
-import enum
 import logging
 import uuid
 from pathlib import Path
 from typing import Any
 
 from millctl import __version__
+from millctl.api import RunState
 from millctl.clock import Clock
 from millctl.config.models import ModelVariant
 from millctl.controller import CommandRefused, Controller, ControllerState
@@ -45,21 +45,8 @@ SETTLE_TIMEOUT_S = 30.0
 STANDSTILL_RPM = 1.0
 
 
-class RunState(enum.StrEnum):
-    """Where a recipe run is."""
-
-    STARTING = "STARTING"
-    RUNNING = "RUNNING"
-    PAUSED = "PAUSED"
-    HELD = "HELD"
-    """Held automatically (furnace out of its band); the operator resumes."""
-    STOPPING = "STOPPING"
-    DONE = "DONE"
-    ABORTED = "ABORTED"
-    FAILED = "FAILED"
-
-
-FINAL = frozenset({RunState.DONE, RunState.ABORTED, RunState.FAILED})
+FINAL = frozenset(s for s in RunState if s.final)
+"""The states a run ends in."""
 
 
 class RecipeRunner:
@@ -262,19 +249,18 @@ class RecipeRunner:
             self._enter(RunState.PAUSED, step.message)
 
     def _issue_ramp(self, step: RampStep) -> None:
-        c = self.controller
         defaults = self.loaded.recipe.defaults
-        c.set_speeds(
+        heating = None if step.furnace_c is None else step.heating_rate_c_per_min or defaults.heating_rate_c_per_min
+        self.controller.set_speeds(  # speeds and furnace checked whole: all or nothing
             step.rotary_rpm,
             step.vibration_rpm,
             rotary_rate_rpm_s=step.rotary_rate_rpm_s or defaults.rotary_rate_rpm_s,
             vibration_rate_rpm_s=step.vibration_rate_rpm_s or defaults.vibration_rate_rpm_s,
             linear=step.path == "linear",
+            furnace_c=step.furnace_c,
+            heating_rate_c_per_min=heating,
             source=self.source,
         )
-        if step.furnace_c is not None:
-            rate = step.heating_rate_c_per_min or defaults.heating_rate_c_per_min
-            c.set_furnace(step.furnace_c, rate_c_per_min=rate, source=self.source)
 
     def _step_done(self, now: float) -> bool:
         step = self.steps[self.index]

@@ -167,16 +167,19 @@ class Envelope:
         law_limit = float(self.law_limit_rpm(omega_v_rpm))
         limit = min((1.0 - self.margin) * law_limit, self.rotary_max_rpm)
         if omega_r_rpm != 0.0 and omega_r_rpm > limit + tolerance_rpm:
+            digits = 1 if f"{omega_r_rpm:.1f}" != f"{limit:.1f}" else 3  # show the difference
             if limit >= self.rotary_max_rpm:
                 why = f"the rotary drive's absolute limit {self.rotary_max_rpm:.1f} rpm (drives.rotary.max_speed_rpm)"
             elif law_limit <= 0.0:
                 why = f"no real limit at ω_v = {omega_v_rpm:.1f} rpm under {self._law_text}: only standstill is allowed"
             else:
                 why = (
-                    f"the limit {limit:.1f} rpm at ω_v = {omega_v_rpm:.1f} rpm "
+                    f"the limit {limit:.{digits}f} rpm at ω_v = {omega_v_rpm:.1f} rpm "
                     f"({1.0 - self.margin:.2f} × {law_limit:.1f} rpm, {self._law_text})"
                 )
-            refusals.append(Refusal("omega_r", omega_r_rpm, limit, "rpm", f"ω_r = {omega_r_rpm:.1f} rpm exceeds {why}"))
+            refusals.append(
+                Refusal("omega_r", omega_r_rpm, limit, "rpm", f"ω_r = {omega_r_rpm:.{digits}f} rpm exceeds {why}")
+            )
         if furnace_temp_c is not None and not (self.furnace_min_c <= furnace_temp_c <= self.furnace_max_c):
             bound = self.furnace_min_c if furnace_temp_c < self.furnace_min_c else self.furnace_max_c
             refusals.append(

@@ -20,6 +20,9 @@ between, so a future law that is not unimodal is handled conservatively.
 Setpoints travel on the wire with a finite resolution. Endpoints are snapped
 to that grid and ω_r,low is rounded down onto it, so that a point on a ramp
 rounded by the codec stays between the ramp's grid-aligned ends and inside.
+Every planned move is then checked on what will be sent: every rounded pair
+its segments can put on the wire (:mod:`millctl.safety.wire`), for every
+path kind — a linear ramp that runs close to the limit can round outside.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from numpy.typing import NDArray
 
 from millctl.config.models import MillConfig
 from millctl.safety.envelope import Envelope, InterlockRefused, Verdict
+from millctl.safety.wire import first_wire_violation
 
 SETTLE_TIME_CONSTANTS = 5.0
 """The planner dwells this many drive time constants between one-axis ramps."""
@@ -190,7 +194,20 @@ class RampPlanner:
             if self.settle_s > 0.0 and i < len(corners) - 2:
                 segments.append(Segment(t, t + self.settle_s, q, q))
                 t += self.settle_s
-        return Trajectory(a, b, tuple(segments))
+        move = Trajectory(a, b, tuple(segments))
+        if not allow_outside_start:
+            self._check_wire(move, "ramp")
+        return move
+
+    def _check_wire(self, move: Trajectory, what: str) -> None:
+        """Refuse a move any of whose wire-rounded setpoints would be outside (what the node would refuse)."""
+        violation = first_violation(move, self.envelope, self.resolution_rpm)
+        if violation is not None:
+            t_s, verdict = violation
+            raise InterlockRefused(
+                verdict, f"{what} at t = {t_s:.1f} s of {move.duration_s:.1f} s (as sent, rounded to "
+                f"{self.resolution_rpm:g} rpm)"
+            )
 
     def plan_linear(
         self,
@@ -202,17 +219,14 @@ class RampPlanner:
         """Both speeds together along the straight line, as an operator may write it.
 
         Refused when any instant of the line leaves the envelope, though both
-        ends may be inside (the limit curve is not straight).
+        ends may be inside (the limit curve is not straight), or when a
+        setpoint rounded onto the wire grid would.
         """
-        env = self.envelope
         rate_r, rate_v = self._rates(rotary_rate_rpm_s, vibration_rate_rpm_s)
         a, b = self.snap(start), self.snap(target)
         duration = max(abs(b.omega_r_rpm - a.omega_r_rpm) / rate_r, abs(b.omega_v_rpm - a.omega_v_rpm) / rate_v)
         move = Trajectory(a, b, (Segment(0.0, duration, a, b),) if a != b else ())
-        violation = first_violation(move, env)
-        if violation is not None:
-            t_s, verdict = violation
-            raise InterlockRefused(verdict, f"linear ramp at t = {t_s:.1f} s of {duration:.1f} s")
+        self._check_wire(move, "linear ramp")
         return move
 
     def plan_stop(self, current: SpeedPoint) -> Trajectory:
@@ -220,17 +234,21 @@ class RampPlanner:
         return self.plan(current, STANDSTILL, allow_outside_start=True)
 
 
-def first_violation(move: Trajectory, envelope: Envelope, points: int = 400) -> tuple[float, Verdict] | None:
-    """The first instant (s) of a move outside the envelope, with the verdict there; None when inside."""
-    times = [0.0]
-    for segment in move.segments:
-        times.extend(np.linspace(segment.t0_s, segment.t1_s, points)[1:].tolist())
-    for t_s in times:
-        p = move.at(t_s)
-        verdict = envelope.check(p.omega_r_rpm, p.omega_v_rpm)
-        if not verdict.ok:
-            return t_s, verdict
-    return None
+def first_violation(
+    move: Trajectory, envelope: Envelope, resolution_rpm: float = 0.1
+) -> tuple[float, Verdict] | None:
+    """The first instant (s) of a move whose setpoint as sent (rounded to ``resolution_rpm``) is outside.
+
+    Returns it with the verdict there; None when every pair the move can put on the wire is inside.
+    """
+    return first_wire_violation(
+        [
+            (s.t0_s, s.t1_s, (s.start.omega_r_rpm, s.start.omega_v_rpm), (s.end.omega_r_rpm, s.end.omega_v_rpm))
+            for s in move.segments
+        ],
+        envelope,
+        resolution_rpm,
+    )
 
 
 __all__ = [

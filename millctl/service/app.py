@@ -20,28 +20,30 @@ from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
 from millctl import __version__
-from millctl.controller import Controller
-from millctl.safety import InterlockRefused
-from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
-from millctl.service.journal import finite
-from millctl.service.models import (
+from millctl.api import (
     CheckOut,
     CheckRequest,
     CommandOut,
     ControlOut,
     EnvelopeOut,
     EnvelopePoint,
+    EventKind,
     EventsOut,
     FurnaceRequest,
     LeaseOut,
     RecipeOut,
     RecipePauseRequest,
+    RecipeProgress,
     RecipeRunRequest,
     ServiceOut,
     SetpointsRequest,
     StatusOut,
     TakeRequest,
 )
+from millctl.controller import Controller
+from millctl.safety import InterlockRefused
+from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
+from millctl.service.journal import finite
 from millctl.service.runtime import ServiceRuntime
 
 STATUS_PERIOD_S = 0.25
@@ -79,7 +81,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
                 rt.recipe.require_idle(what)
             result = action(c, holder)
             duration = getattr(result, "duration_s", None)
-            return CommandOut(message=what, state=str(c.state), duration_s=duration)
+            return CommandOut(message=what, state=c.state, duration_s=duration)
 
         return rt.call(run)
 
@@ -162,7 +164,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         lease, taken_from = rt.leases.take(holder, lease_id=x_millctl_lease, force=bool(body and body.force))
         if x_millctl_lease != lease.lease_id:  # a new lease, not a renewal
             note = f" (took over the expired lease of {taken_from})" if taken_from else ""
-            rt.journal.add("control", holder, f"control taken by {holder}{note}", taken_from=taken_from)
+            rt.journal.add(EventKind.CONTROL, holder, f"control taken by {holder}{note}", taken_from=taken_from)
         return LeaseOut(lease_id=lease.lease_id, holder=lease.holder, ttl_s=lease.ttl_s,
                         expires_in_s=lease.remaining_s(rt.clock.now()))
 
@@ -170,7 +172,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     def release(x_millctl_lease: LeaseId = None) -> ControlOut:
         """Give control back (only its holder can)."""
         lease = rt.leases.release(x_millctl_lease)
-        rt.journal.add("control", lease.holder, f"control released by {lease.holder}")
+        rt.journal.add(EventKind.CONTROL, lease.holder, f"control released by {lease.holder}")
         return _control_out(rt)
 
     # ------------------------------------------------------------------ commands
@@ -205,18 +207,23 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         with rt.lock:
             rt.recipe.abort_if_active(source(x_millctl_client))
             rt.controller.estop(source=source(x_millctl_client))
-            return CommandOut(message="E-STOP", state=str(rt.controller.state))
+            return CommandOut(message="E-STOP", state=rt.controller.state)
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(
         body: SetpointsRequest, x_millctl_lease: LeaseId = None
     ) -> CommandOut:
-        """Ramp to new drive speeds (rpm); refused with the interlock's reason when outside the envelope."""
+        """Ramp to new drive speeds (rpm), with an optional furnace target (°C): all or nothing.
+
+        Refused with the interlock's reason when any part is outside the envelope; then no part is applied.
+        """
+        furnace = "" if body.temp_c is None else f", furnace {body.temp_c:.1f} °C"
         return command(
             x_millctl_lease,
-            f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm",
+            f"setpoints ω_r = {body.rotary_rpm:.1f} rpm, ω_v = {body.vibration_rpm:.1f} rpm{furnace}",
             lambda c, s: c.set_speeds(body.rotary_rpm, body.vibration_rpm, rotary_rate_rpm_s=body.rotary_rate_rpm_s,
-                                      vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear, source=s),
+                                      vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear,
+                                      furnace_c=body.temp_c, heating_rate_c_per_min=body.rate_c_per_min, source=s),
         )
 
     @app.post("/v1/furnace", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
@@ -232,14 +239,15 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     def recipe_action(lease: str | None, action: Any) -> RecipeOut:
         holder = rt.leases.check(lease).holder
         progress = rt.call(lambda c: action(holder))
-        return RecipeOut(active=rt.recipe.active, progress=finite(progress))
+        return RecipeOut(active=rt.recipe.active, progress=RecipeProgress.model_validate(finite(progress)))
 
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
     def recipe() -> RecipeOut:
         """Progress of the current (or last) recipe run."""
         with rt.lock:
             progress = rt.recipe.progress()
-            return RecipeOut(active=rt.recipe.active, progress=finite(progress or {}))
+            shown = RecipeProgress.model_validate(finite(progress)) if progress is not None else None
+            return RecipeOut(active=rt.recipe.active, progress=shown)
 
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:

@@ -17,6 +17,7 @@ from typing import Any
 
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from millctl.api import ErrorCode
 from millctl.errors import InvalidInputError
 
 MIN_TOKEN_CHARS = 16
@@ -62,7 +63,7 @@ class TokenGuard:
 
 async def _reply_401(send: Send, message: str) -> None:
     body: dict[str, Any] = {
-        "code": "unauthorized",
+        "code": ErrorCode.UNAUTHORIZED.value,
         "message": f"{message}: TCP requests need 'Authorization: Bearer <token>' (service.token_file)",
         "field": "Authorization",
     }

@@ -22,10 +22,10 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException
 
+from millctl.api import ErrorBody, ErrorCode
 from millctl.errors import InterlockError, InvalidInputError
 from millctl.safety import InterlockRefused
 from millctl.service.lease import LeaseError
-from millctl.service.models import ErrorBody
 from millctl.service.recipe import RecipeRefused
 from millctl.service.runtime import NodeUnreachable
 
@@ -34,7 +34,7 @@ def _num(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def error_response(status: int, code: str, message: str, **extra: Any) -> JSONResponse:
+def error_response(status: int, code: ErrorCode, message: str, **extra: Any) -> JSONResponse:
     """A JSON error response in the one shape every error has."""
     body = ErrorBody(code=code, message=message, **extra)
     return JSONResponse(status_code=status, content=body.model_dump(exclude_defaults=True))
@@ -54,14 +54,14 @@ async def _validation(request: Request, exc: Exception) -> JSONResponse:
     first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
     field = ".".join(str(part) for part in first.get("loc", ()))
     parts = [f"{'.'.join(str(p) for p in e.get('loc', ()))}: {e.get('msg', '')}" for e in errors[:5]]
-    return error_response(422, "invalid_request", "; ".join(parts) or "invalid request", field=field or None)
+    return error_response(422, ErrorCode.INVALID_REQUEST, "; ".join(parts) or "invalid request", field=field or None)
 
 
 async def _interlock_refused(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, InterlockRefused)
     refusals = refusal_list(exc)
     field = refusals[0]["quantity"] if refusals else None
-    return error_response(409, "interlock_refused", str(exc), field=field, refusals=refusals)
+    return error_response(409, ErrorCode.INTERLOCK_REFUSED, str(exc), field=field, refusals=refusals)
 
 
 async def _recipe_refused(request: Request, exc: Exception) -> JSONResponse:
@@ -70,31 +70,31 @@ async def _recipe_refused(request: Request, exc: Exception) -> JSONResponse:
         {"quantity": v.quantity, "value": _num(v.value), "limit": _num(v.limit), "unit": "", "reason": str(v)}
         for v in exc.violations
     ]
-    return error_response(409, "recipe_refused", str(exc), field="path", refusals=refusals)
+    return error_response(409, ErrorCode.RECIPE_REFUSED, str(exc), field="path", refusals=refusals)
 
 
 async def _lease(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, LeaseError)
-    return error_response(423, "control_held", str(exc), field="X-Millctl-Lease", holder=exc.holder)
+    return error_response(423, ErrorCode.CONTROL_HELD, str(exc), field="X-Millctl-Lease", holder=exc.holder)
 
 
 async def _interlock(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(409, "wrong_state", str(exc))
+    return error_response(409, ErrorCode.WRONG_STATE, str(exc))
 
 
 async def _invalid_input(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(422, "invalid_input", str(exc), field="path")
+    return error_response(422, ErrorCode.INVALID_INPUT, str(exc), field="path")
 
 
 async def _unreachable(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(503, "node_unreachable", str(exc))
+    return error_response(503, ErrorCode.NODE_UNREACHABLE, str(exc))
 
 
 async def _http(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, HTTPException)
     if exc.status_code == 400:  # a body that is not JSON at all: a validation error like any other
-        return error_response(422, "invalid_request", f"body: {exc.detail}", field="body")
-    return error_response(exc.status_code, f"http_{exc.status_code}", str(exc.detail))
+        return error_response(422, ErrorCode.INVALID_REQUEST, f"body: {exc.detail}", field="body")
+    return error_response(exc.status_code, ErrorCode.HTTP_ERROR, f"HTTP {exc.status_code}: {exc.detail}")
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -20,6 +20,7 @@ from typing import Any, TypeVar
 import can
 
 from millctl import __version__
+from millctl.api import EventKind
 from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
 from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
@@ -90,10 +91,10 @@ class ServiceRuntime:
     def start(self) -> None:
         """Record the start and the configuration (SAFETY 14: law and margin shown), then start the loop."""
         envelope = self.controller.envelope
-        self.journal.add("service", "service", f"service started (pid {os.getpid()}, millctl {__version__})",
+        self.journal.add(EventKind.SERVICE, "service", f"service started (pid {os.getpid()}, millctl {__version__})",
                          pid=os.getpid(), version=__version__)
         self.journal.add(
-            "config",
+            EventKind.CONFIG,
             "service",
             f"config {self.loaded.source} (sha256 {self.loaded.sha256[:12]}…): envelope {envelope.description}",
             path=self.loaded.source,
@@ -119,8 +120,8 @@ class ServiceRuntime:
             except Exception as exc:  # the loop must say why it died; the node's watchdog does the rest
                 log.exception("control loop failed")
                 self.failed = f"control loop failed: {type(exc).__name__}: {exc}"
-                self.journal.add("service", "service", f"{self.failed}; heartbeat stopped, the node's watchdog stops "
-                                 "the mill")
+                self.journal.add(EventKind.SERVICE, "service", f"{self.failed}; heartbeat stopped, "
+                                 "the node's watchdog stops the mill")
                 return
             next_s += period_s
             delay_s = next_s - time.monotonic()
@@ -215,7 +216,7 @@ class ServiceRuntime:
                 measured = self.controller.measured
                 shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
                 self.journal.add(
-                    "service",
+                    EventKind.SERVICE,
                     "service",
                     f"service stopped: {reason}; state {self.controller.state}, measured {shown}"
                     + ("" if stopped else f" (no standstill within {bound_s:.0f} s)"),

@@ -101,10 +101,12 @@ class Commanding(MillView):
 
     async def _set(self, request: SetRequest) -> None:
         what = f"set ω_r {request.rotary_rpm:g} rpm, ω_v {request.vibration_rpm:g} rpm"
-        ok = await self._send(what, lambda c: c.set_speeds(request.rotary_rpm, request.vibration_rpm))
-        if ok and request.furnace:
-            temp = request.temp_c
-            await self._send("heater off" if temp is None else f"furnace {temp:g} °C", lambda c: c.set_furnace(temp))
+        temp = request.temp_c if request.furnace else None
+        if temp is not None:
+            what += f", furnace {temp:g} °C"
+        ok = await self._send(what, lambda c: c.set_speeds(request.rotary_rpm, request.vibration_rpm, temp_c=temp))
+        if ok and request.furnace and temp is None:
+            await self._send("heater off", lambda c: c.set_furnace(None))
 
     # ------------------------------------------------------------------ recipes
     def action_recipe_run(self) -> None:

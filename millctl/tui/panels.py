@@ -176,6 +176,8 @@ class LinkPanel(Static):
             text.append(line, style=style)
         invalid = status.get("invalid_frames", 0)
         text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
+        if receive_errors := status.get("receive_errors", 0):
+            text.append(f"  receive errors {receive_errors}", style="red")
         self.update(text, layout=False)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -9,6 +10,7 @@ from hypothesis import strategies as st
 from millctl.config import LimitLaw
 from millctl.safety import Envelope, InterlockRefused
 from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint
+from millctl.safety.wire import rounded_samples
 
 
 def envelope_for(config, law: LimitLaw) -> Envelope:
@@ -114,3 +116,49 @@ def test_settle_dwell_between_one_axis_ramps(config):
     assert dwell.start == dwell.end == SpeedPoint(0.0, 800.0)
     assert dwell.t1_s - dwell.t0_s == 1.0
     assert move.duration_s == pytest.approx(800.0 / 120.0 + 1.0 + 180.0 / 40.0)
+
+
+def test_linear_ramp_is_checked_on_the_wire_rounded_samples(planner):
+    """Issue 15 item 8: the line is inside, but (159.2, 459.7) on its way rounds outside: the node would refuse it."""
+    start, target = SpeedPoint(174.0, 671.3), SpeedPoint(153.7, 382.0)
+    env = planner.envelope
+    assert env.check(159.2, 459.7).ok is False  # a rounded sample the line passes
+    line_r = np.linspace(174.0, 153.7, 4001)
+    line_v = np.linspace(671.3, 382.0, 4001)
+    assert bool(np.all(env.contains(line_r, line_v)))  # the unrounded line is inside
+    with pytest.raises(InterlockRefused, match=r"linear ramp at t = .* \(as sent, rounded to 0\.1 rpm\)"):
+        planner.plan_linear(start, target)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    start=st.tuples(st.integers(0, 2500), st.integers(0, 12000)),
+    end=st.tuples(st.integers(0, 2500), st.integers(0, 12000)),
+)
+def test_rounded_samples_hold_every_pair_a_sampled_line_can_send(start, end):
+    """The crossing enumeration contains every rounded pair that dense sampling of the line finds."""
+    a, b = (start[0] / 10.0, start[1] / 10.0), (end[0] / 10.0, end[1] / 10.0)
+    _, w_r, w_v = rounded_samples(a, b, 0.1)
+    exact = set(zip(np.round(w_r, 6).tolist(), np.round(w_v, 6).tolist(), strict=True))
+    f = np.linspace(0.0, 1.0, 20001)
+    dense_r = np.round((a[0] + f * (b[0] - a[0])) / 0.1) * 0.1
+    dense_v = np.round((a[1] + f * (b[1] - a[1])) / 0.1) * 0.1
+    dense = set(zip(np.round(dense_r, 6).tolist(), np.round(dense_v, 6).tolist(), strict=True))
+    assert dense <= exact
+
+
+@settings(max_examples=60, deadline=None)
+@given(data=st.data(), law=st.sampled_from(list(LimitLaw)))
+def test_every_rounded_sample_of_an_accepted_linear_ramp_is_inside(config, data, law):
+    envelope = envelope_for(config, law)
+    planner = RampPlanner(envelope)
+    start = data.draw(inside_points(envelope), label="start")
+    target = data.draw(inside_points(envelope), label="target")
+    try:
+        move = planner.plan_linear(start, target)
+    except InterlockRefused:
+        return
+    _, w_r, w_v = move.sample(dt_s=max(move.duration_s / 3000.0, 1e-4))
+    for r, v in zip(w_r, w_v, strict=True):
+        q = planner.snap(SpeedPoint(float(r), float(v)))
+        assert envelope.check(q.omega_r_rpm, q.omega_v_rpm).ok, (law, start, target, q)

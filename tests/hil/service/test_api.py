@@ -187,6 +187,25 @@ def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
         client.disarm()
 
 
+def test_cli_set_with_a_refused_furnace_target_applies_no_part(
+    service: Service, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 15 item 7: `set --rot-rpm 150 --vib-rpm 800 --temp-c 5000` is refused whole; the speeds stay."""
+    assert main(["--config", str(service.config), "arm"]) == ExitCode.OK
+    with service.client() as client:
+        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+    capsys.readouterr()
+    refused = main(["--config", str(service.config), "set", "--rot-rpm", "150", "--vib-rpm", "800", "--temp-c", "5000"])
+    assert refused == ExitCode.INTERLOCK
+    assert "furnace setpoint 5000.0 °C is outside" in capsys.readouterr().err
+    with service.client() as client, client.control():
+        status = client.status()
+        assert (status["target_rotary_rpm"], status["target_vibration_rpm"]) == (0.0, 0.0)
+        assert status["furnace_target_c"] is None
+        assert status["state"] == "ARMED"
+        client.disarm()
+
+
 DEMO = Path(__file__).resolve().parents[3] / "config" / "recipes" / "demo.toml"
 
 

@@ -170,3 +170,33 @@ def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench):
     bench.run(3.0, state=NodeState.FAULT)  # the node keeps its fault
     assert bench.controller.state is S.TRIPPED
     assert any(e.kind is EventKind.REFUSAL and "reset did not complete" in e.message for e in bench.events)
+
+
+def _without_furnace(bench: ScriptedNode, seconds: float) -> None:
+    """The node's NodeStatus and DriveTelemetry every 50 ms, its FurnaceTelemetry not (yet)."""
+    from millctl.protocol import DriveTelemetry, NodeStatus
+
+    for i in range(round(seconds / 0.01)):
+        if i % 5 == 0:
+            bench.say(NodeStatus(NodeState.DISABLED))
+            bench.say(DriveTelemetry(0.0, 0.0))
+        bench.controller.tick()
+        bench.clock.advance(0.01)
+
+
+def test_start_up_waits_for_every_stream_before_judging_staleness(bench):
+    """Issue 15 item 9: a stream that starts later than NodeStatus is not 'stale: never received' at start."""
+    _without_furnace(bench, 0.5)
+    assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
+    bench.run(3.0, state=NodeState.DISABLED)  # the furnace stream begins
+    assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
+
+
+def test_a_stream_that_never_comes_is_a_fault_after_the_start_up_grace(bench, config):
+    grace_s = config.interlock.startup_grace_s
+    _without_furnace(bench, grace_s - 0.1)
+    assert bench.controller.state is S.DISABLED
+    _without_furnace(bench, 0.2)
+    assert bench.controller.state is S.TRIPPED
+    assert "FurnaceTelemetry stale: never received" in bench.controller.trip_cause
+    assert "interlock.startup_grace_s" in bench.controller.trip_cause

@@ -116,3 +116,65 @@ def test_virtual_bus_opens_and_does_not_echo() -> None:
     finally:
         bus.shutdown()
         peer.shutdown()
+
+
+DRAIN_CHILD = textwrap.dedent(
+    """
+    import json
+    import socket
+    import time
+    import can
+    from millctl.config.models import Bus
+    from millctl.protocol import BusReader, Command, CommandCode, default_codec
+    from millctl.protocol.factory import open_bus
+
+    config = Bus(interface="udp_multicast", channel="239.74.163.2", options={"port": 43118, "hop_limit": 0})
+    codec = default_codec()
+    a, b = open_bus(config), open_bus(config)
+    raw = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    raw.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 0)
+    try:
+        for counter in range(200):  # a babbles: 200 own echoes queue up in its socket
+            a.send(can.Message(arbitration_id=0x001, data=bytes(8), is_extended_id=False))
+        b.send(codec.encode(Command(CommandCode.STOP), counter=1))
+        time.sleep(0.3)
+        first = a.recv(0.0)  # past every own echo with timeout 0
+        raw.sendto(b"\\x01", ("239.74.163.2", 43118))  # one byte: not a frame
+        b.send(codec.encode(Command(CommandCode.ARM), counter=2))
+        time.sleep(0.3)
+        try:
+            a.recv(0.0)
+            bad = "no error"
+        except can.CanOperationError as exc:
+            bad = str(exc)
+        after_bad = a.recv(0.0)
+        for counter in range(300):
+            a.send(can.Message(arbitration_id=0x001, data=bytes(8), is_extended_id=False))
+        raw.sendto(b"\\x02", ("239.74.163.2", 43118))
+        b.send(can.Message(arbitration_id=0x000, data=b"\\x03", is_extended_id=False))
+        time.sleep(0.3)
+        reader = BusReader(a, "a")
+        batch = reader.drain()
+        print(json.dumps({
+            "first": None if first is None else codec.decode(first).message.command.name,
+            "bad": bad,
+            "after_bad": None if after_bad is None else codec.decode(after_bad).message.command.name,
+            "drain_estop": batch.estop, "drain_frames": len(batch.frames),
+            "drain_errors": reader.counts.receive_errors, "left": a.recv(0.0) is not None,
+        }))
+    finally:
+        raw.close()
+        for bus in (a, b):
+            bus.shutdown()
+    """
+)
+
+
+def test_a_drain_reads_past_every_own_echo_and_any_bad_datagram() -> None:
+    result = run_in_private_netns(DRAIN_CHILD)
+    assert result.returncode == 0, result.stderr
+    seen = json.loads(result.stdout.strip().splitlines()[-1])
+    assert seen["first"] == "STOP"  # the old bus returned None at the first own echo
+    assert "undecodable datagram of 1 bytes" in seen["bad"]
+    assert seen["after_bad"] == "ARM"
+    assert seen == seen | {"drain_estop": True, "drain_frames": 0, "drain_errors": 1, "left": False}

@@ -133,19 +133,41 @@ def test_reset_procedure(rig):
     assert rig.controller.state is S.ARMED
 
 
+def test_a_set_with_a_refused_furnace_target_applies_no_part(rig):
+    """Issue 15 item 7: speeds and furnace are checked whole; a refused furnace target leaves the speeds untouched."""
+    rig.start(0.0, 0.0)
+    with pytest.raises(InterlockRefused, match=r"furnace setpoint 5000\.0 °C is outside"):
+        rig.controller.set_speeds(150.0, 800.0, furnace_c=5000.0)
+    with pytest.raises(InterlockRefused, match=r"heating rate"):
+        rig.controller.set_speeds(150.0, 800.0, furnace_c=200.0, heating_rate_c_per_min=1000.0)
+    with pytest.raises(InterlockRefused, match=r"exceeds the limit"):  # and a refused speed leaves the furnace
+        rig.controller.set_speeds(250.0, 800.0, furnace_c=200.0)
+    rig.run(3.0)
+    assert rig.controller.trajectory is None and rig.controller.furnace_target_c is None
+    assert max(rig.node.true_speeds_rpm) < 1.0 and not rig.node.heater_on
+    move = rig.controller.set_speeds(150.0, 800.0, furnace_c=200.0)  # both parts inside: both applied
+    assert move.end.omega_r_rpm == 150.0 and rig.controller.furnace_target_c == 200.0
+
+
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(moves=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(0, 1100)), min_size=1, max_size=3))
+@given(
+    moves=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(0, 1100), st.booleans()), min_size=1, max_size=3)
+)
 def test_the_planner_never_sends_what_the_node_refuses(config, moves):
-    """SAFETY 13: controller and node share one limit module; random moves are never refused."""
+    """SAFETY 13: controller and node share one limit module; random moves, sequenced or linear, are never refused."""
     rig = Rig(config)
     try:
         rig.start(0.0, 0.0)
-        for fraction, w_v in moves:
+        for fraction, w_v, linear in moves:
             limit = float(rig.controller.envelope.omega_r_limit_rpm(w_v))
-            move = rig.controller.set_speeds(round(fraction * limit * 0.999, 1), round(w_v, 1))
+            try:
+                move = rig.controller.set_speeds(round(fraction * limit * 0.999, 1), round(w_v, 1), linear=linear)
+            except InterlockRefused:
+                assert linear  # only a straight line can leave the envelope between two inside ends
+                continue
             rig.run(move.duration_s + 1.5)
             assert rig.controller.state in (S.ARMED, S.RUNNING), rig.controller.trip_cause
-        assert rig.node.refused_setpoints == 0
+        assert rig.node.refused_setpoints == 0, rig.node.last_refusal
         assert outside_envelope(rig) == []
     finally:
         rig.close()

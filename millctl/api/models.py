@@ -1,0 +1,313 @@
+"""Request and response models of the service API (``/v1``), defined once for every part of millctl.
+
+Every request is validated and unknown fields are refused; every float in a
+response may be null where the value is not finite (e.g. an unbounded limit).
+:class:`StatusOut` mirrors :class:`millctl.controller.Status` field for field
+(a unit test holds them together).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState
+
+
+class Strict(BaseModel):
+    """A request or response body: unknown fields are an error."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+Rpm = Annotated[float, Field(ge=0.0, le=100_000.0, allow_inf_nan=False)]
+RpmPerS = Annotated[float, Field(gt=0.0, le=100_000.0, allow_inf_nan=False)]
+
+
+# ---------------------------------------------------------------- errors
+class Refusal(Strict):
+    """One quantity outside the envelope: its value, the limit and why."""
+
+    quantity: str = Field(description="what was refused, e.g. omega_r_rpm, omega_v_rpm, temp_c")
+    value: float | None = Field(description="the value asked for")
+    limit: float | None = Field(description="the bound it crosses")
+    unit: str = Field(description="unit of value and limit")
+    reason: str = Field(description="the refusal in words, with the value, the bound and where to read more")
+
+
+class ErrorBody(Strict):
+    """Every error of the API: a stable code, a message naming the value and the bound, the field if any."""
+
+    code: ErrorCode = Field(description="stable machine-readable code")
+    message: str = Field(description="what was wrong, with the value and the bound")
+    field: str | None = Field(default=None, description="the request field (or header) at fault")
+    holder: str | None = Field(default=None, description="who holds control (code control_held)")
+    refusals: list[Refusal] = Field(default_factory=list, description="the interlock's refusals (interlock_refused)")
+
+
+# ---------------------------------------------------------------- status
+class LinkOut(Strict):
+    """Health of one telemetry frame kind."""
+
+    age_s: float | None = Field(description="time since the last valid frame (s); null before the first")
+    stale_after_s: float = Field(description="age past which it counts as stale (s)")
+    stale: bool
+    frames: int = Field(description="valid frames received")
+    e2e: dict[str, int] = Field(description="E2E verdict counts (ok, repeated, wrong-crc …)")
+    e2e_score: int = Field(description="the E2E receiver's net error score")
+    e2e_sequence_score: int = Field(description="the E2E receiver's sequence score (repeated/out-of-sequence counters)")
+
+
+class BusReceiveOut(Strict):
+    """The controller's bus reader counts since start (:class:`millctl.protocol.ReceiveCounts`)."""
+
+    frames: int = Field(description="frames read")
+    estops: int = Field(description="E-stop frames (ID 0x000) read, from any sender")
+    malformed: int = Field(description="frames that do not fit the DBC (length, DLC, FD, remote, unknown ID, value)")
+    error_frames: int = Field(description="CAN error frames")
+    receive_errors: int = Field(description="reads that failed (undecodable datagram, socket error)")
+    capped_drains: int = Field(description="ticks whose drain stopped at its bound with frames left")
+    last_error: str = Field(description="the latest receive error or malformed frame (empty before the first)")
+
+
+class StatusOut(Strict):
+    """A snapshot of the controller (as :class:`millctl.controller.Status`; non-finite floats as null)."""
+
+    time_s: float | None = Field(description="controller clock (s)")
+    state: ControllerState
+    trip_cause: str = Field(description="why the controller tripped (empty unless TRIPPED)")
+    node_state: str | None = Field(description="the node's own state, null before the node is seen")
+    node_faults: list[str] = Field(description="fault flags the node reports")
+    node_first_fault: str | None = Field(description="the node's first latched fault")
+    refused_setpoints: int = Field(description="setpoints the node itself refused")
+    last_refusal: str | None = Field(description="the node's last refusal code")
+    setpoint_rotary_rpm: float | None = Field(description="rotary setpoint sent now (rpm, on the ramp)")
+    setpoint_vibration_rpm: float | None = Field(description="vibration setpoint sent now (rpm, on the ramp)")
+    target_rotary_rpm: float | None = Field(description="rotary speed at the end of the ramp (rpm)")
+    target_vibration_rpm: float | None = Field(description="vibration speed at the end of the ramp (rpm)")
+    ramp_remaining_s: float | None = Field(description="time left on the ramp (s)")
+    measured_rotary_rpm: float | None = Field(description="measured rotary speed ω_r (rpm)")
+    measured_vibration_rpm: float | None = Field(description="measured vibration speed ω_v (rpm)")
+    rotary_torque_nm: float | None = Field(description="rotary drive torque (N·m)")
+    vibration_torque_nm: float | None = Field(description="vibration drive torque (N·m)")
+    furnace_target_c: float | None = Field(description="furnace target (°C), null with the heater off")
+    furnace_setpoint_c: float | None = Field(description="furnace setpoint now, on its heating ramp (°C)")
+    furnace_temp_c: float | None = Field(description="measured furnace temperature (°C)")
+    heater_pct: float | None = Field(description="heater power (%)")
+    heater_on: bool | None
+    law: str = Field(description="the envelope's limit law (docs/safety.md)")
+    margin: float | None = Field(description="safety margin applied to the law (fraction)")
+    limit_rotary_rpm: float | None = Field(description="enforced rotary limit at the vibration setpoint (rpm)")
+    margin_rpm: float | None = Field(description="limit minus the rotary speed (rpm); null at standstill")
+    law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
+    detached: bool | None = Field(description="the node's physics: rods detach from the wall")
+    theta_d_deg: float | None = Field(description="detachment angle θ_d (deg)")
+    impact_rate_hz: float | None = Field(description="impacts per second")
+    impact_energy_mj: float | None = Field(description="mean impact energy (mJ)")
+    shear_kpa: float | None = Field(description="shear stress (kPa)")
+    link: dict[str, LinkOut] = Field(description="health of each telemetry frame kind")
+    invalid_frames: int = Field(description="frames dropped as invalid")
+    receive_errors: int = Field(description="failed reads and CAN error frames, counted and skipped")
+    bus_receive: BusReceiveOut = Field(description="every count of the controller's bus reader")
+
+
+# ---------------------------------------------------------------- envelope
+class EnvelopePoint(Strict):
+    """The enforced limit at one vibration speed."""
+
+    omega_v_rpm: float = Field(description="vibration speed ω_v (rpm)")
+    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
+    law_limit_rpm: float | None = Field(description="the law's limit without margin (rpm)")
+    law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
+
+
+class EnvelopeOut(Strict):
+    """The limit curve the interlock enforces, and what it is built from (SAFETY 14: shown)."""
+
+    law: str = Field(description="the limit law in force")
+    description: str = Field(description="the envelope in words")
+    margin: float = Field(description="safety margin applied to the law (fraction)")
+    rotary_max_rpm: float = Field(description="rotary drive maximum (rpm)")
+    vibration_max_rpm: float = Field(description="vibration drive maximum (rpm)")
+    furnace_min_c: float = Field(description="lowest furnace target (°C)")
+    furnace_max_c: float = Field(description="highest furnace target (°C)")
+    max_heating_rate_c_per_min: float = Field(description="fastest heating ramp (°C/min)")
+    points: list[EnvelopePoint]
+
+
+class CheckRequest(Strict):
+    """An operating point to check against the envelope (nothing is commanded)."""
+
+    rotary_rpm: float = Field(allow_inf_nan=False, ge=-100_000.0, le=100_000.0, description="ω_r (rpm)")
+    vibration_rpm: float = Field(allow_inf_nan=False, ge=-100_000.0, le=100_000.0, description="ω_v (rpm)")
+    temp_c: float | None = Field(default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
+                                 description="furnace target (°C), if any")
+
+
+class CheckOut(Strict):
+    """The envelope's verdict on one point."""
+
+    ok: bool
+    reason: str = Field(description="the verdict in words")
+    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
+    margin_rpm: float | None = Field(description="limit minus ω_r (rpm)")
+    refusals: list[Refusal]
+
+
+# ---------------------------------------------------------------- control lease
+class TakeRequest(Strict):
+    """Ask for control; ``force`` takes over a lease whose holder stopped renewing it (never a live one)."""
+
+    force: bool = Field(default=False, description="take over an expired lease")
+
+
+class LeaseOut(Strict):
+    """The control lease: send ``lease_id`` in the ``X-Millctl-Lease`` header of every command."""
+
+    lease_id: str
+    holder: str = Field(description="who holds it, as api:<client name>")
+    expires_in_s: float = Field(description="time until it expires unless renewed (s)")
+    ttl_s: float = Field(description="lease time to live (s)")
+
+
+class ControlOut(Strict):
+    """Who holds control now (no lease id: only its holder knows it)."""
+
+    held: bool
+    holder: str | None
+    expires_in_s: float | None = Field(description="time until the lease expires (s)")
+    expired: bool
+
+
+# ---------------------------------------------------------------- commands
+class SetpointsRequest(Strict):
+    """New drive speeds; the controller plans a ramp inside the envelope or refuses."""
+
+    rotary_rpm: Rpm = Field(description="rotary target ω_r (rpm)")
+    vibration_rpm: Rpm = Field(description="vibration target ω_v (rpm)")
+    rotary_rate_rpm_s: RpmPerS | None = Field(default=None, description="rotary ramp rate (rpm/s); default: config")
+    vibration_rate_rpm_s: RpmPerS | None = Field(default=None,
+                                                 description="vibration ramp rate (rpm/s); default: config")
+    linear: bool = Field(default=False, description="ramp both drives on one straight line (docs/safety.md)")
+    temp_c: float | None = Field(default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
+                                 description="furnace target (°C) set with the speeds, all or nothing: "
+                                 "when any part is refused, no part is applied")
+    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
+                                         description="heating rate with temp_c (°C/min); default: config")
+
+
+class FurnaceRequest(Strict):
+    """A furnace target (°C), or null to turn the heater off."""
+
+    temp_c: float | None = Field(allow_inf_nan=False, ge=-1_000.0, le=10_000.0, description="target (°C)")
+    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
+                                         description="heating rate (°C/min); default: config")
+
+
+class CommandOut(Strict):
+    """A command was accepted: what was done and the state right after."""
+
+    accepted: Literal[True] = True
+    message: str = Field(description="the command as done")
+    state: ControllerState = Field(description="the controller's state after the command took effect")
+    duration_s: float | None = Field(default=None, description="planned ramp duration (setpoints)")
+
+
+# ---------------------------------------------------------------- events, service
+class EventOut(Strict):
+    """One recorded event (state change, command, refusal, trip, control, service)."""
+
+    seq: int = Field(description="sequence number (the stream's event id)")
+    t: float = Field(description="Unix time (s)")
+    time_s: float | None = Field(description="controller clock (s)")
+    kind: EventKind
+    source: str = Field(description="who caused it: operator, recipe, interlock, node, service, api:<client>")
+    message: str
+    data: dict[str, Any]
+
+
+class EventsOut(Strict):
+    """Events after a sequence number, oldest first (a ring buffer: old ones drop out)."""
+
+    events: list[EventOut]
+    last_seq: int = Field(description="sequence number of the newest event")
+
+
+class ServiceOut(Strict):
+    """The running service: process, config, envelope law and margin, records."""
+
+    pid: int
+    version: str
+    started_unix: float = Field(description="Unix time the service started (s)")
+    config_path: str
+    config_sha256: str
+    law: str
+    margin: float
+    bus_interface: str
+    bus_channel: str
+    embedded_node: bool = Field(description="the simulated node runs inside the service")
+    records_dir: str
+
+
+# ---------------------------------------------------------------- recipes
+class RecipeRunRequest(Strict):
+    """Run the recipe file at ``path`` (on the service's machine)."""
+
+    path: str = Field(min_length=1, max_length=4096, description="recipe TOML file on the service's machine")
+
+
+class RecipePauseRequest(Strict):
+    """Pause the running recipe: at the end of the step, or ``now``."""
+
+    now: bool = Field(default=False, description="pause now, holding the current setpoints")
+
+
+class RecipeProgress(Strict):
+    """Where a recipe run is."""
+
+    run_id: str
+    recipe: str = Field(description="the recipe's name")
+    recipe_file: str
+    state: RunState
+    reason: str | None = Field(description="why it ended, paused or held")
+    step: int = Field(description="the current step, from 1")
+    steps: int = Field(description="number of steps")
+    kind: str | None = Field(description="kind of the current step (ramp, hold, wait_furnace, pause)")
+    elapsed_s: float | None = Field(description="time since the run started (s)")
+    step_elapsed_s: float | None = Field(description="time spent in the current step (s)")
+    remaining_s: float | None = Field(description="planned time left, including the final stop (s)")
+    record: str = Field(description="the run record (JSON lines)")
+
+
+class RecipeOut(Strict):
+    """The current (or last) recipe run; ``active`` false when none runs, ``progress`` null before the first."""
+
+    active: bool
+    progress: RecipeProgress | None
+
+
+__all__ = [
+    "CheckOut",
+    "CheckRequest",
+    "CommandOut",
+    "ControlOut",
+    "EnvelopeOut",
+    "EnvelopePoint",
+    "ErrorBody",
+    "EventOut",
+    "EventsOut",
+    "FurnaceRequest",
+    "LeaseOut",
+    "LinkOut",
+    "RecipeOut",
+    "RecipePauseRequest",
+    "RecipeProgress",
+    "RecipeRunRequest",
+    "Refusal",
+    "ServiceOut",
+    "SetpointsRequest",
+    "StatusOut",
+    "Strict",
+    "TakeRequest",
+]
