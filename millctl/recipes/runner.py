@@ -361,7 +361,6 @@ class RecipeRunner:
             "elapsed_s": now - self._started_s,
             "step_elapsed_s": step_elapsed,
             "remaining_s": remaining if not self.finished else 0.0,
-            "step_dose_kj_g": self._dose_j_g * 1e-3,
             "record": str(self.record.path),
         }
 
