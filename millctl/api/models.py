@@ -1,5 +1,8 @@
 """Request and response models of the service API (``/v1``), defined once for every part of millctl.
 
+Keys follow one scheme: ``<what>_<axis>_<unit>`` (``setpoint_rotary_rpm``,
+``limit_rotary_rpm``, ``vibration_rpm``), units always last.
+
 Every request is validated and unknown fields are refused; every float in a
 response may be null where the value is not finite (e.g. an unbounded limit).
 :class:`StatusOut` mirrors :class:`millctl.controller.Status` field for field
@@ -116,9 +119,9 @@ class StatusOut(Strict):
 class EnvelopePoint(Strict):
     """The enforced limit at one vibration speed."""
 
-    omega_v_rpm: float = Field(description="vibration speed ω_v (rpm)")
-    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
-    law_limit_rpm: float | None = Field(description="the law's limit without margin (rpm)")
+    vibration_rpm: float = Field(description="vibration speed ω_v (rpm)")
+    limit_rotary_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
+    law_limit_rotary_rpm: float | None = Field(description="the law's rotary limit without margin (rpm)")
     law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
 
 
@@ -150,7 +153,7 @@ class CheckOut(Strict):
 
     ok: bool
     reason: str = Field(description="the verdict in words")
-    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
+    limit_rotary_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
     margin_rpm: float | None = Field(description="limit minus ω_r (rpm)")
     refusals: list[Refusal]
 

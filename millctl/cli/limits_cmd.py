@@ -81,10 +81,10 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
     for i, w_v in enumerate(omega_v_rpm):
         rows.append(
             {
-                "omega_v_rpm": float(w_v),
+                "vibration_rpm": float(w_v),
                 "gamma": float(gamma[i]),
-                **{f"{name}_rpm": float(values[i]) for name, values in laws.items()},
-                "envelope_rpm": float(envelope_rpm[i]),
+                "law_limit_rotary_rpm": {name: float(values[i]) for name, values in laws.items()},
+                "limit_rotary_rpm": float(envelope_rpm[i]),
                 "law_is_every_cycle": bool(every_cycle[i]),
                 "no_real_limit": bool(flags.no_real_limit[i]),
                 "spring_below_inertia": bool(flags.spring_below_inertia[i]),
@@ -97,7 +97,7 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
         "law": envelope.law.value,
         "margin": envelope.margin,
         "rod_mass_kg": p.rod_mass_kg,
-        "switch_omega_v_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
+        "switch_vibration_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
         "cam": config.mill.cam.shape.value,
         "rows": rows,
     }
@@ -109,22 +109,22 @@ def _run(args: argparse.Namespace) -> int:
         from millctl.studies.cams import compare_cams
 
         config = load_config(args.config).config
-        speeds = [row["omega_v_rpm"] for row in table["rows"]]
+        speeds = [row["vibration_rpm"] for row in table["rows"]]
         table["cams"] = compare_cams(config, LimitLaw(table["law"]), speeds)
     if args.plot:
         plot_limits(args.plot, table, args)
     if args.json:
-        print_json(table)
+        print_json(args, table)
     else:
         _print_table(table)
         if "cams" in table:
             _print_cams(table)
-    not_every = [r["omega_v_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
+    not_every = [r["vibration_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
     if not_every:
         stderr_console().print(
             f"[yellow]warning:[/] the configured law {table['law']} is not the every-cycle detachment bound "
             f"at ω_v = {', '.join(f'{v:g}' for v in not_every)} rpm (k < mω_v² above "
-            f"{table['switch_omega_v_rpm']:.1f} rpm): rods may stay pinned for many cycles there. "
+            f"{table['switch_vibration_rpm']:.1f} rpm): rods may stay pinned for many cycles there. "
             "See docs/model.md#eq-9."
         )
     return int(ExitCode.OK)
@@ -154,10 +154,10 @@ def _print_table(table: dict[str, Any]) -> None:
         if not row["law_is_every_cycle"]:
             flags.append("†")
         out.add_row(
-            f"{row['omega_v_rpm']:.0f}",
+            f"{row['vibration_rpm']:.0f}",
             f"{row['gamma']:.3f}",
-            *(f"{row[f'{law.value}_rpm']:.1f}" for law in LAWS),
-            f"{row['envelope_rpm']:.1f}",
+            *(f"{row['law_limit_rotary_rpm'][law.value]:.1f}" for law in LAWS),
+            f"{row['limit_rotary_rpm']:.1f}",
             " ".join(flags),
         )
     out.caption = (
@@ -179,8 +179,8 @@ def _print_cams(table: dict[str, Any]) -> None:
             out.add_column(f"p {variant}\n{shape}", justify="right")
         out.add_column(f"{variant}\ndouble/single", justify="right")
     for row in table["cams"]:
-        cells = [f"{row['omega_v_rpm']:.0f}", f"{row['envelope_single_rpm']:.1f}", f"{row['envelope_double_rpm']:.1f}"]
-        cells.append(f"{row['omega_r_rpm']:.1f}")
+        cells = [f"{row['vibration_rpm']:.0f}", f"{row['limit_rotary_single_rpm']:.1f}"]
+        cells += [f"{row['limit_rotary_double_rpm']:.1f}", f"{row['rotary_rpm']:.1f}"]
         for variant in ("paper", "corrected"):
             single, double = row[f"p_{variant}_single"], row[f"p_{variant}_double"]
             cells += [_num(single), _num(double), _num(double / single if single > 0 else float("nan"))]
@@ -225,7 +225,7 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
         alpha=0.12,
         label=f"envelope ({law.value}, margin {envelope.margin:.0%})",
     )
-    ax5.axvline(table["switch_omega_v_rpm"], color="grey", ls=":", label="k = mω_v²")
+    ax5.axvline(table["switch_vibration_rpm"], color="grey", ls=":", label="k = mω_v²")
     ax5.set(
         xlabel="vibration speed ω_v (rpm)",
         ylabel="max rotary speed ω_r,max (rpm)",

@@ -18,10 +18,14 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from millctl.api import ControllerState, RecipeProgress, RunState, StatusOut
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.errors import BusError, ExitCode
+
+if TYPE_CHECKING:
+    from millctl.client import Client
 
 POLL_S = 0.5
 """How often the progress display asks the service (s)."""
@@ -36,7 +40,7 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     run = sub.add_parser(
         "run", parents=[socket_opt], help="run a recipe in the service (starts the embedded one if needed)"
     )
-    run.add_argument("file")
+    run.add_argument("file", help="the recipe (TOML)")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument("--detach", action="store_true", help="start the run and return; follow it with `recipe status`")
     run.set_defaults(handler=_run)
@@ -46,11 +50,11 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     for name, text in (("resume", "resume a paused or held run"), ("abort", "abort the run: controlled stop")):
         sub.add_parser(name, parents=[socket_opt], help=text).set_defaults(handler=_action, action=name)
     status = sub.add_parser("status", parents=[socket_opt], help="progress of the current or last run")
-    status.add_argument("--json", action="store_true")
+    status.add_argument("--json", action="store_true", help="machine-readable output")
     status.set_defaults(handler=_status)
 
 
-def _client(args: argparse.Namespace, name: str = "recipe") -> Any:
+def _client(args: argparse.Namespace, name: str = "recipe") -> Client:
     from millctl.client import Client
 
     return Client(args.socket, config=args.config, name=name)
@@ -64,7 +68,7 @@ def _action(args: argparse.Namespace) -> int:
             progress = client.recipe_resume()
         else:
             progress = client.recipe_abort()
-    stdout_console().print(_line(progress.get("progress") or {}), markup=False)
+    stdout_console().print(_line(progress.progress), markup=False)
     return int(ExitCode.OK)
 
 
@@ -72,9 +76,9 @@ def _status(args: argparse.Namespace) -> int:
     with _client(args) as client:
         result = client.recipe()
     if args.json:
-        print_json(result)
+        print_json(args, result)
     else:
-        progress = result.get("progress")
+        progress = result.progress
         stdout_console().print(_line(progress) if progress else "no recipe has run in this service", markup=False)
     return int(ExitCode.OK)
 
@@ -95,13 +99,13 @@ class _EmbeddedService:
             command, stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log, start_new_session=True
         )
 
-    def wait_ready(self, client: Any) -> None:
+    def wait_ready(self, client: Client) -> None:
         deadline = time.monotonic() + SERVICE_START_TIMEOUT_S
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
                 raise BusError(f"the embedded service exited with code {self.proc.returncode}; see {self.log_path}")
             with contextlib.suppress(BusError):
-                if client.status()["state"] != "DISCONNECTED":  # the controller has seen the node
+                if client.status().state is not ControllerState.DISCONNECTED:  # the controller has seen the node
                     return
             time.sleep(0.2)
         raise BusError(
@@ -136,14 +140,15 @@ def _run(args: argparse.Namespace) -> int:
             embedded = _EmbeddedService(args, client.socket_path)
             embedded.wait_ready(client)
         client.take_control()
-        started = client.recipe_run(os.path.abspath(loaded.source))["progress"]
+        started = client.recipe_run(os.path.abspath(loaded.source)).progress
+        assert started is not None  # the service answers a started run with its progress
         err.print(
-            f"run {started['run_id']}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
+            f"run {started.run_id}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
             f"{plan.total_s:.0f} s planned) — Ctrl+C pauses, twice aborts"
         )
         if args.detach:
             stdout_console().print(
-                f"run {started['run_id']} started; follow with `millctl recipe status`", markup=False
+                f"run {started.run_id} started; follow with `millctl recipe status`", markup=False
             )
             return int(ExitCode.OK)
         final = _follow(client)
@@ -173,7 +178,7 @@ class _Interrupts:
         self.count += 1
 
 
-def _follow(client: Any) -> dict[str, Any]:
+def _follow(client: Client) -> RecipeProgress:
     """Show progress until the run ends; Ctrl+C once pauses now, twice aborts."""
     from rich.live import Live
 
@@ -181,6 +186,7 @@ def _follow(client: Any) -> dict[str, Any]:
 
     acted = 0
     last_renew = time.monotonic()
+    clock = _StopClock()
     with _Interrupts() as interrupts, Live(console=stderr_console(), refresh_per_second=4) as live:
         while True:
             if interrupts.count > acted:
@@ -194,9 +200,11 @@ def _follow(client: Any) -> dict[str, Any]:
                         live.console.print("[red]aborting[/]: controlled stop")
                 except ServiceRefused as refused:  # e.g. already paused by a pause step, or already stopping
                     live.console.print(f"[yellow]{refused}[/]")
-            progress: dict[str, Any] = client.recipe()["progress"] or {}
-            live.update(_panel(progress, client.status()))
-            if progress.get("state") in ("DONE", "ABORTED", "FAILED"):
+            progress = client.recipe().progress
+            if progress is None:
+                raise BusError("the service has no recipe run: was it restarted?")
+            live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
+            if progress.state.final:
                 return progress
             if time.monotonic() - last_renew > LEASE_RENEW_S:
                 client.take_control()
@@ -204,50 +212,85 @@ def _follow(client: Any) -> dict[str, Any]:
             time.sleep(POLL_S)
 
 
-def _panel(progress: dict[str, Any], status: dict[str, Any]) -> Any:
+class _StopClock:
+    """Counts the final stop down: the service reports its planned duration while STOPPING, not the time left."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def remaining_s(self, progress: RecipeProgress) -> float | None:
+        """Time left (s): the service's, or while STOPPING its stop duration minus the time spent stopping."""
+        if progress.state is not RunState.STOPPING:
+            self.since = None
+            return progress.remaining_s
+        now = time.monotonic()
+        if self.since is None:
+            self.since = now
+        return None if progress.remaining_s is None else max(progress.remaining_s - (now - self.since), 0.0)
+
+
+def _panel(progress: RecipeProgress, status: StatusOut, remaining_s: float | None) -> Any:
+    from rich.progress_bar import ProgressBar
     from rich.table import Table
 
+    elapsed = progress.elapsed_s or 0.0
+    total = elapsed + (remaining_s or 0.0)
     grid = Table.grid(padding=(0, 2))
-    grid.add_row("run", _line(progress))
-    limit = status.get("limit_rotary_rpm")
-    measured_r, measured_v = status.get("measured_rotary_rpm"), status.get("measured_vibration_rpm")
+    grid.add_row("run", f"{progress.recipe}  {progress.state}" + (f" — {progress.reason}" if progress.reason else ""))
+    grid.add_row("", ProgressBar(total=max(total, 1e-9), completed=elapsed, width=40))
+    grid.add_row("", f"{_step(progress)}   elapsed {hms(elapsed)}   remaining {_hms(remaining_s)}")
+    s = status
     grid.add_row(
         "speeds",
-        f"ω_r {status.get('setpoint_rotary_rpm', 0):.1f} rpm (measured {_num(measured_r)}), "
-        f"limit {_num(limit)} rpm; ω_v {status.get('setpoint_vibration_rpm', 0):.1f} rpm (measured {_num(measured_v)})",
+        f"ω_r {_num(s.setpoint_rotary_rpm)} rpm (measured {_num(s.measured_rotary_rpm)}), "
+        f"limit {_num(s.limit_rotary_rpm)} rpm; ω_v {_num(s.setpoint_vibration_rpm)} rpm "
+        f"(measured {_num(s.measured_vibration_rpm)})",
     )
-    grid.add_row(
-        "furnace", f"{_num(status.get('furnace_temp_c'))} °C (setpoint {_num(status.get('furnace_setpoint_c'))})"
-    )
-    grid.add_row("state", f"{status.get('state')} {status.get('trip_cause') or ''}")
+    grid.add_row("furnace", f"{_num(s.furnace_temp_c)} °C (setpoint {_num(s.furnace_setpoint_c)})")
+    grid.add_row("state", f"{s.state} {s.trip_cause}")
     return grid
 
 
-def _num(value: Any) -> str:
+def _num(value: float | None) -> str:
     return "—" if value is None else f"{value:.1f}"
 
 
-def _line(progress: dict[str, Any]) -> str:
-    if not progress:
+def _hms(seconds: float | None) -> str:
+    return "—" if seconds is None else hms(seconds)
+
+
+def _step(progress: RecipeProgress) -> str:
+    """``step 2/4 (hold)``; after the last step, the final stop or the end, never ``(None)``."""
+    if progress.kind is not None:
+        return f"step {progress.step}/{progress.steps} ({progress.kind})"
+    if progress.state is RunState.STOPPING:
+        return f"steps {progress.steps}/{progress.steps} done, stopping"
+    return f"step {progress.step}/{progress.steps}"
+
+
+def _line(progress: RecipeProgress | None) -> str:
+    if progress is None:
         return "no run"
     return (
-        f"{progress.get('state')} step {progress.get('step')}/{progress.get('steps')} ({progress.get('kind')}), "
-        f"elapsed {hms(progress.get('elapsed_s', 0.0))}, remaining ≈ {hms(progress.get('remaining_s', 0.0))}"
-        + (f" — {progress['reason']}" if progress.get("reason") else "")
+        f"{progress.state} {_step(progress)}, elapsed {_hms(progress.elapsed_s)}, "
+        f"remaining ≈ {_hms(progress.remaining_s)}" + (f" — {progress.reason}" if progress.reason else "")
     )
 
 
-def _summary(args: argparse.Namespace, final: dict[str, Any]) -> int:
-    ok = final.get("state") == "DONE"
+def _summary(args: argparse.Namespace, final: RecipeProgress) -> int:
+    ok = final.state is RunState.DONE
     if args.json:
-        print_json(final)
+        error = None if ok else {"code": f"run_{final.state.lower()}", "exit_code": int(ExitCode.INTERLOCK),
+                                 "message": f"recipe run {final.run_id} {final.state}: {final.reason or ''}"}
+        print_json(args, final, error)
     else:
         out = stdout_console()
-        out.print(f"recipe {final.get('recipe')!s}: {final.get('state')}", markup=False)
-        out.print(f"  run id   {final.get('run_id')}", markup=False)
-        out.print(f"  steps    {final.get('step')}/{final.get('steps')}", markup=False)
-        out.print(f"  elapsed  {hms(final.get('elapsed_s', 0.0))}", markup=False)
-        if final.get("reason"):
-            out.print(f"  reason   {final.get('reason')}", markup=False)
-        out.print(f"  record   {final.get('record')}", markup=False)
+        out.print(f"recipe {final.recipe}: {final.state}", markup=False)
+        out.print(f"  run id   {final.run_id}", markup=False)
+        out.print(f"  steps    {final.step}/{final.steps}", markup=False)
+        out.print(f"  elapsed  {_hms(final.elapsed_s)}", markup=False)
+        if final.reason:
+            out.print(f"  reason   {final.reason}", markup=False)
+        out.print(f"  record   {final.record}", markup=False)
+        out.print(f"  report   millctl report {final.record}", markup=False)
     return int(ExitCode.OK) if ok else int(ExitCode.INTERLOCK)

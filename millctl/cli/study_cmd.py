@@ -79,7 +79,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.recipe is not None:
         summary["recipe"] = _write_recipe(args, study, runner, result)
     if args.json:
-        print_json(summary)
+        print_json(args, summary)
     else:
         _print_table(result, runner.metrics, args.top, summary)
     return int(ExitCode.OK)

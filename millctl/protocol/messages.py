@@ -230,6 +230,8 @@ class PhysicsTelemetry:
     impact_energy_mj: float
     """Mean impact energy (mJ)."""
     shear_kpa: float
+    no_slip_violated: bool = False
+    """The paper's no-slip carriage needs more wall friction than μN somewhere (docs/model.md, slip)."""
     E2E: ClassVar[bool] = False
 
 

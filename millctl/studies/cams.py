@@ -35,17 +35,17 @@ def _model(config: MillConfig, shape: CamShape, variant: ModelVariant) -> MillMo
     return MillModel.from_config(cfg.model_copy(update={"model": model}))
 
 
-def compare_cams(config: MillConfig, law: LimitLaw, omega_v_rpm: list[float]) -> list[dict[str, Any]]:
+def compare_cams(config: MillConfig, law: LimitLaw, vibration_rpm: list[float]) -> list[dict[str, Any]]:
     """One row per ω_v: both cams' envelopes (rpm) and, at a speed both allow, p and the detach fraction."""
     envelopes = {shape: Envelope.from_config(with_cam(config, shape), law=law) for shape in CamShape}
     rows = []
-    for w_v in omega_v_rpm:
+    for w_v in vibration_rpm:
         limits = {shape: float(envelopes[shape].omega_r_limit_rpm(w_v)) for shape in CamShape}
         w_r = min(limits.values())
         row: dict[str, Any] = {
-            "omega_v_rpm": w_v,
-            **{f"envelope_{shape.value}_rpm": limits[shape] for shape in CamShape},
-            "omega_r_rpm": w_r,
+            "vibration_rpm": w_v,
+            **{f"limit_rotary_{shape.value}_rpm": limits[shape] for shape in CamShape},
+            "rotary_rpm": w_r,
         }
         for variant in ModelVariant:
             for shape in CamShape:

@@ -49,7 +49,7 @@ class ConstraintSpec:
 
     law: str = "none"
     drives: bool = True
-    max_omega_v_rpm: float | None = None
+    max_vibration_rpm: float | None = None
     max_spring_force_n: float | None = None
 
 
@@ -97,31 +97,32 @@ def point_config(task: PointTask) -> MillConfig:
 
 
 def _speeds_rpm(task: PointTask) -> tuple[float, float]:
-    speeds = {**task.fixed_speeds_rpm, **{k: v for k, v in task.params.items() if k.startswith("omega_")}}
-    return float(speeds["omega_r_rpm"]), float(speeds["omega_v_rpm"])
+    speeds = {**task.fixed_speeds_rpm, **{k: v for k, v in task.params.items() if k in ("rotary_rpm", "vibration_rpm")}}
+    return float(speeds["rotary_rpm"]), float(speeds["vibration_rpm"])
 
 
-def violations(config: MillConfig, omega_r_rpm: float, omega_v_rpm: float, c: ConstraintSpec) -> list[str]:
+def violations(config: MillConfig, rotary_rpm: float, vibration_rpm: float, c: ConstraintSpec) -> list[str]:
     """Every constraint a point breaks, each saying the value and the bound."""
     found = []
     if c.law != "none":
         law = LimitLaw(c.law)
-        limit = float(rad_s_to_rpm(omega_r_max(law, LimitParams.from_config(config), rpm_to_rad_s(omega_v_rpm))))
+        limit = float(rad_s_to_rpm(omega_r_max(law, LimitParams.from_config(config), rpm_to_rad_s(vibration_rpm))))
         allowed = (1.0 - config.interlock.margin) * limit
-        if omega_r_rpm > allowed:
+        if rotary_rpm > allowed:
             found.append(
-                f"ω_r = {omega_r_rpm:.1f} rpm > {allowed:.1f} rpm allowed by {law.value} at ω_v = {omega_v_rpm:.0f} rpm"
+                f"ω_r = {rotary_rpm:.1f} rpm > {allowed:.1f} rpm allowed by {law.value} "
+                f"at ω_v = {vibration_rpm:.0f} rpm"
             )
     if c.drives:
         drives = config.drives
-        if omega_r_rpm > drives.rotary.max_speed_rpm:
-            found.append(f"ω_r = {omega_r_rpm:.1f} rpm > rotary drive maximum {drives.rotary.max_speed_rpm:g} rpm")
-        if omega_v_rpm > drives.vibration.max_speed_rpm:
+        if rotary_rpm > drives.rotary.max_speed_rpm:
+            found.append(f"ω_r = {rotary_rpm:.1f} rpm > rotary drive maximum {drives.rotary.max_speed_rpm:g} rpm")
+        if vibration_rpm > drives.vibration.max_speed_rpm:
             found.append(
-                f"ω_v = {omega_v_rpm:.1f} rpm > vibration drive maximum {drives.vibration.max_speed_rpm:g} rpm"
+                f"ω_v = {vibration_rpm:.1f} rpm > vibration drive maximum {drives.vibration.max_speed_rpm:g} rpm"
             )
-    if c.max_omega_v_rpm is not None and omega_v_rpm > c.max_omega_v_rpm:
-        found.append(f"ω_v = {omega_v_rpm:.1f} rpm > structural limit {c.max_omega_v_rpm:g} rpm")
+    if c.max_vibration_rpm is not None and vibration_rpm > c.max_vibration_rpm:
+        found.append(f"ω_v = {vibration_rpm:.1f} rpm > structural limit {c.max_vibration_rpm:g} rpm")
     if c.max_spring_force_n is not None:
         force = config.mill.spring.stiffness_n_per_m * config.mill.cam.eccentricity_m
         if force > c.max_spring_force_n:
@@ -131,15 +132,15 @@ def violations(config: MillConfig, omega_r_rpm: float, omega_v_rpm: float, c: Co
 
 def evaluate(task: PointTask) -> dict[str, Any]:
     """One point: its parameters, metrics, events, feasibility and the reasons, as one flat row."""
-    omega_r_rpm, omega_v_rpm = _speeds_rpm(task)
+    rotary_rpm, vibration_rpm = _speeds_rpm(task)
     row: dict[str, Any] = {"point": task.index, "key": point_key(task.params), **task.params}
-    row |= {"omega_r_rpm": omega_r_rpm, "omega_v_rpm": omega_v_rpm}
+    row |= {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm}
     try:
         config = point_config(task)
         values, events = compute_metrics(
             config,
-            rpm_to_rad_s(omega_r_rpm),
-            rpm_to_rad_s(omega_v_rpm),
+            rpm_to_rad_s(rotary_rpm),
+            rpm_to_rad_s(vibration_rpm),
             task.metrics,
             task.settings,
             point_seed(task.seed, task.params),
@@ -149,7 +150,7 @@ def evaluate(task: PointTask) -> dict[str, Any]:
         return row | dict.fromkeys(task.metrics, math.nan) | {"events": 0, "feasible": False, "violations": reason}
     except PhysicsInputError as exc:
         return row | dict.fromkeys(task.metrics, math.nan) | {"events": 0, "feasible": False, "violations": str(exc)}
-    broken = violations(config, omega_r_rpm, omega_v_rpm, task.constraints)
+    broken = violations(config, rotary_rpm, vibration_rpm, task.constraints)
     return row | values | {"events": events, "feasible": not broken, "violations": "; ".join(broken)}
 
 

@@ -64,15 +64,15 @@ def heatmap(
 ) -> Path | None:
     """Heat map of ``metric`` over (ω_v, ω_r) with the limit curves; None unless both speeds vary."""
     names = {p.value for p in study.parameters}
-    if not {"omega_r_rpm", "omega_v_rpm"} <= names:
+    if not {"rotary_rpm", "vibration_rpm"} <= names:
         return None
     plt = _pyplot()
-    cut = _slice(rows, best, {"omega_r_rpm", "omega_v_rpm"}, study)
-    w_r = sorted({float(r["omega_r_rpm"]) for r in cut})
-    w_v = sorted({float(r["omega_v_rpm"]) for r in cut})
+    cut = _slice(rows, best, {"rotary_rpm", "vibration_rpm"}, study)
+    w_r = sorted({float(r["rotary_rpm"]) for r in cut})
+    w_v = sorted({float(r["vibration_rpm"]) for r in cut})
     grid = np.full((len(w_r), len(w_v)), np.nan)
     for r in cut:
-        grid[w_r.index(float(r["omega_r_rpm"])), w_v.index(float(r["omega_v_rpm"]))] = float(r[metric])
+        grid[w_r.index(float(r["rotary_rpm"])), w_v.index(float(r["vibration_rpm"]))] = float(r[metric])
     config: MillConfig = point_config(runner_task({p.value: best[p.value] for p in study.parameters}))
     fig, ax = plt.subplots(figsize=(8, 6))
     mesh = ax.pcolormesh(w_v, w_r, grid, shading="nearest", cmap="viridis")
@@ -101,7 +101,7 @@ def heatmap(
         )
     ax.plot(*PAPER_POINT_RPM, marker="*", markersize=16, color="white", markeredgecolor="black", linestyle="none")
     ax.annotate("paper: 200/800", PAPER_POINT_RPM, textcoords="offset points", xytext=(8, 8), color="white")
-    ax.plot(best["omega_v_rpm"], best["omega_r_rpm"], marker="o", color="red", linestyle="none", label="best point")
+    ax.plot(best["vibration_rpm"], best["rotary_rpm"], marker="o", color="red", linestyle="none", label="best point")
     ax.set_xlim(left, right)
     ax.set_ylim(bottom, top)
     ax.set_xlabel("ω_v, cam speed (rpm)")

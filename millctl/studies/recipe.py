@@ -27,7 +27,7 @@ def _toml_value(value: Any) -> str:
 
 def recipe_text(study: Study, best: dict[str, Any], powder_g: float, dose_kj_g: float | None, hold_h: float) -> str:
     """The recipe file's text."""
-    w_r, w_v = float(best["omega_r_rpm"]), float(best["omega_v_rpm"])
+    w_r, w_v = float(best["rotary_rpm"]), float(best["vibration_rpm"])
     design = {k: best[k] for k in CONFIG_PATHS if k in best}
     hold = f"dose_kj_g = {dose_kj_g!r}" if dose_kj_g is not None else f"duration_h = {hold_h!r}"
     note = "; ".join(f"{k} = {v}" for k, v in design.items())

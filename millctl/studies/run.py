@@ -96,10 +96,12 @@ class StudyRunner:
         self.metrics = metric_names(study, source)
         self.terms = study.objective.terms
         c = study.constraints
-        self._constraints = ConstraintSpec(str(c.law), c.drives, c.max_omega_v_rpm, c.max_spring_force_n)
+        self._constraints = ConstraintSpec(str(c.law), c.drives, c.max_vibration_rpm, c.max_spring_force_n)
         self._settings = PointSettings(cam_phases=study.metrics.cam_phases, revolutions=study.metrics.revolutions)
         self._base_data = base.model_dump(mode="json")
-        fixed = {k: v for k, v in (("omega_r_rpm", study.study.omega_r_rpm), ("omega_v_rpm", study.study.omega_v_rpm))}
+        fixed = {
+            k: v for k, v in (("rotary_rpm", study.study.rotary_rpm), ("vibration_rpm", study.study.vibration_rpm))
+        }
         self._fixed = {k: float(v) for k, v in fixed.items() if v is not None}
         self.fingerprint = fingerprint_of(study.model_dump(mode="json"), self._base_data)
         self.store = store if store is not None else ResultsStore(Path("/dev/null"), self.fingerprint)
@@ -204,7 +206,7 @@ def pareto_front(rows: Sequence[dict[str, Any]], metrics: Sequence[str]) -> list
 def check_parameters(study: Study, base: MillConfig, source: str) -> None:
     """Speeds must be varied or fixed in [study]; materials and cam shapes must be known names."""
     problems = []
-    for speed in (Parameter.OMEGA_R_RPM, Parameter.OMEGA_V_RPM):
+    for speed in (Parameter.ROTARY_RPM, Parameter.VIBRATION_RPM):
         fixed = getattr(study.study, speed.value)
         if speed not in study.parameters and fixed is None:
             problems.append(f"{source}: {speed.value}: vary it under [parameters] or fix it in [study]")

@@ -9,7 +9,7 @@ error names the file, the field, the value and the bound (docs/studies.md)::
     variant = "corrected"          # physics variant of every point (default: the base config's)
     seed = 1                       # seeds the level-(c) initial phases and the optimiser
 
-    [parameters.omega_r_rpm]
+    [parameters.rotary_rpm]
     grid = { start = 20, stop = 300, num = 15 }    # or values = [...], or bounds = [lo, hi] (optimiser)
 
     [metrics]
@@ -18,7 +18,7 @@ error names the file, the field, the value and the bound (docs/studies.md)::
     [constraints]
     law = "corrected-every-phase"  # the interlock envelope under this law (config margin)
     drives = true
-    max_omega_v_rpm = 1000.0
+    max_vibration_rpm = 1000.0
     max_spring_force_n = 0.5
 
     [objective]
@@ -56,8 +56,8 @@ class _Strict(BaseModel):
 class Parameter(enum.StrEnum):
     """What a study may vary: speeds, the mill's design, and the powder charge."""
 
-    OMEGA_R_RPM = "omega_r_rpm"
-    OMEGA_V_RPM = "omega_v_rpm"
+    ROTARY_RPM = "rotary_rpm"
+    VIBRATION_RPM = "vibration_rpm"
     SPRING_N_PER_M = "spring_n_per_m"
     ECCENTRICITY_MM = "eccentricity_mm"
     CAM_SHAPE = "cam_shape"
@@ -122,7 +122,7 @@ class Constraints(_Strict):
     """The interlock envelope under this law, with the configured margin; "none" = no envelope."""
     drives: bool = True
     """Both speeds within the drives' maximum speeds."""
-    max_omega_v_rpm: Annotated[float, Field(gt=0.0)] | None = None
+    max_vibration_rpm: Annotated[float, Field(gt=0.0)] | None = None
     """Structural limit on the vibration speed (rpm)."""
     max_spring_force_n: Annotated[float, Field(gt=0.0)] | None = None
     """Structural limit on the spring force amplitude k·r_d (N)."""
@@ -174,9 +174,9 @@ class Header(_Strict):
     """Base mill configuration, relative to the study file (default: the configuration in force)."""
     variant: ModelVariant | None = None
     seed: Annotated[int, Field(ge=0, le=2**32 - 1)] = 0
-    omega_r_rpm: Annotated[float, Field(ge=0.0, le=10_000.0)] | None = None
+    rotary_rpm: Annotated[float, Field(ge=0.0, le=10_000.0)] | None = None
     """Rotary speed of every point when it is not a parameter (rpm)."""
-    omega_v_rpm: Annotated[float, Field(ge=0.0, le=10_000.0)] | None = None
+    vibration_rpm: Annotated[float, Field(ge=0.0, le=10_000.0)] | None = None
     """Vibration (cam motor) speed of every point when it is not a parameter (rpm)."""
     note: str = ""
 

@@ -421,8 +421,8 @@ class Mill:
         return self.transport.timeout(seconds)
 
     def status(self) -> dict[str, Any]:
-        """The controller's status through the API."""
-        return self.client.status()
+        """The controller's status through the API, as plain data."""
+        return self.client.status().model_dump(mode="json")
 
     def wait_state(self, state: str, timeout_s: float = 10.0) -> dict[str, Any]:
         """Wait until the controller reports ``state``; return that status."""

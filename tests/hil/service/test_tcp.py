@@ -45,9 +45,9 @@ def test_tcp_needs_the_token_and_a_stale_socket_is_replaced() -> None:
             with Client(base_url=url, token="wrong-token-0000000000") as intruder, pytest.raises(AccessDenied):
                 intruder.status()
             with Client(base_url=url, token=TOKEN) as client:
-                assert client.status()["state"] == "DISABLED"
+                assert client.status().state == "DISABLED"
             with service.client() as local:  # the Unix socket needs no token
-                assert local.status()["state"] == "DISABLED"
+                assert local.status().state == "DISABLED"
         finally:
             assert service.stop() == 0
 

@@ -29,9 +29,9 @@ def test_double_cam_claim_in_numbers(capsys):
     import json
 
     assert main(["--config", str(CONFIG_FILE), "limits", "--cam", "double", "--vib-rpm", "400", "800", "--json"]) == 0
-    rows = json.loads(capsys.readouterr().out)["cams"]
+    rows = json.loads(capsys.readouterr().out)["result"]["cams"]
     for row in rows:
         ratio_paper = row["p_paper_double"] / row["p_paper_single"]
         assert 1.0 < ratio_paper < 2.0
         assert row["p_corrected_double"] / row["p_corrected_single"] == pytest.approx(1.0, abs=0.01)
-        assert row["envelope_double_rpm"] > row["envelope_single_rpm"]  # printed eq. 9 moves up
+        assert row["limit_rotary_double_rpm"] > row["limit_rotary_single_rpm"]  # printed eq. 9 moves up

@@ -65,7 +65,7 @@ def test_plan_gives_the_expected_dose_and_time_of_each_step(dose_file, config):
 
 def test_recipe_plan_json_shows_the_dose_per_step(dose_file, capsys):
     assert main(["--config", str(CONFIG_FILE), "recipe", "plan", str(dose_file), "--json"]) == 0
-    data = json.loads(capsys.readouterr().out)
+    data = json.loads(capsys.readouterr().out)["result"]
     assert [s["dose_target_kj_g"] for s in data["steps"]] == [None, 0.002, None]
     assert data["steps"][1]["dose_kj_g"] == pytest.approx(0.002)
     assert data["powder_charge_g"] == 0.5 and data["total_dose_kj_g"] > 0.002
@@ -74,7 +74,7 @@ def test_recipe_plan_json_shows_the_dose_per_step(dose_file, capsys):
 def test_a_dose_at_a_point_without_impacts_is_refused_in_pre_flight(tmp_path, capsys):
     path = tmp_path / "r.toml"
     path.write_text('[recipe]\nname = "x"\n[[steps]]\nkind = "hold"\ndose_kj_g = 1.0\n')
-    assert main(["--config", str(CONFIG_FILE), "recipe", "check", str(path)]) == 1
+    assert main(["--config", str(CONFIG_FILE), "recipe", "check", str(path)]) == 2  # a pre-flight refusal
     err = capsys.readouterr().err
     assert "step 1" in err and "would never end" in err
     with pytest.raises(RecipeError, match="exactly one of duration_s, duration_min, duration_h, dose_kj_g"):

@@ -12,10 +12,10 @@ name = "grid on Set A"
 seed = 7
 variant = "corrected"
 
-[parameters.omega_r_rpm]
+[parameters.rotary_rpm]
 grid = { start = 80, stop = 280, num = 3 }
 
-[parameters.omega_v_rpm]
+[parameters.vibration_rpm]
 values = [400.0, 800.0]
 
 [metrics]
@@ -25,7 +25,7 @@ cam_phases = 2
 
 [constraints]
 law = "corrected-best-phase"
-max_omega_v_rpm = 1000.0
+max_vibration_rpm = 1000.0
 
 [objective]
 maximize = "dose_rate_j_g_s"
@@ -36,9 +36,9 @@ OPTIMISER = """
 name = "optimiser on Set A"
 seed = 11
 variant = "corrected"
-omega_v_rpm = 800.0
+vibration_rpm = 800.0
 
-[parameters.omega_r_rpm]
+[parameters.rotary_rpm]
 bounds = [60.0, 300.0]
 
 [metrics]

@@ -44,7 +44,7 @@ def run(path, config, backend=None, store=None, **kw):
 
 def test_grid_study_on_set_a(grid_file, config):
     result = run(grid_file, config)
-    assert [(r["omega_r_rpm"], r["omega_v_rpm"]) for r in result.rows] == [
+    assert [(r["rotary_rpm"], r["vibration_rpm"]) for r in result.rows] == [
         (80.0, 400.0), (80.0, 800.0), (180.0, 400.0), (180.0, 800.0), (280.0, 400.0), (280.0, 800.0),
     ]  # fmt: skip
     # 280 rpm is above the corrected best-phase limit (minus the 5 % margin) at 400 rpm: infeasible, with the reason
@@ -68,7 +68,7 @@ def test_optimiser_study_on_set_a(optimiser_file, config):
     best = first.best
     assert best is not None and best["feasible"]
     assert best["objective"] == max(r["objective"] for r in first.rows if r["feasible"])
-    assert 60.0 <= best["omega_r_rpm"] <= 300.0
+    assert 60.0 <= best["rotary_rpm"] <= 300.0
 
 
 def test_backends_give_identical_results(grid_file, config):
@@ -147,17 +147,17 @@ def test_pareto_front_keeps_only_undominated_points():
     [
         ('[study]\nname = "x"\nspeed = 3\n', "study.speed: unknown key"),
         (
-            '[study]\nname = "x"\n[parameters.omega_r_rpm]\nvalues = [1]\ngrid = { start = 1, stop = 2, num = 2 }\n'
+            '[study]\nname = "x"\n[parameters.rotary_rpm]\nvalues = [1]\ngrid = { start = 1, stop = 2, num = 2 }\n'
             '[objective]\nmaximize = "gamma"\n',
             "give exactly one of grid, values, bounds",
         ),
         (
-            '[study]\nname = "x"\n[parameters.omega_r_rpm]\ngrid = { start = 1, stop = 2, num = 0 }\n'
+            '[study]\nname = "x"\n[parameters.rotary_rpm]\ngrid = { start = 1, stop = 2, num = 0 }\n'
             '[objective]\nmaximize = "gamma"\n',
-            "parameters.omega_r_rpm.grid.num = 0",
+            "parameters.rotary_rpm.grid.num = 0",
         ),
         (
-            '[study]\nname = "x"\n[parameters.spring_n_per_m]\nvalues = [1]\n[parameters.omega_r_rpm]\n'
+            '[study]\nname = "x"\n[parameters.spring_n_per_m]\nvalues = [1]\n[parameters.rotary_rpm]\n'
             'bounds = [1, 2]\n[objective]\nmaximize = "gamma"\n',
             "gives bounds for every parameter",
         ),
@@ -172,21 +172,21 @@ def test_bad_study_files_name_file_field_and_value(tmp_path, text, expected):
 
 def test_unknown_metric_material_and_missing_speed(tmp_path, config):
     text = (
-        '[study]\nname = "x"\n[parameters.omega_r_rpm]\nvalues = [100]\n[parameters.rod_material]\n'
+        '[study]\nname = "x"\n[parameters.rotary_rpm]\nvalues = [100]\n[parameters.rod_material]\n'
         'values = ["unobtainium"]\n[metrics]\nnames = ["power"]\n[objective]\nmaximize = "gamma"\n'
     )
     path = write(tmp_path, "bad.toml", text)
     study = load_study(path)
     with pytest.raises(StudyError, match=r"unobtainium.*unknown") as err:
         check_parameters(study, config, str(path))
-    assert "omega_v_rpm: vary it" in str(err.value)
+    assert "vibration_rpm: vary it" in str(err.value)
     with pytest.raises(StudyError, match="metrics power unknown"):
         StudyRunner(study, config, str(path))
 
 
 def test_a_mill_that_cannot_exist_is_an_infeasible_point_with_its_reason(tmp_path, config):
     text = (
-        '[study]\nname = "x"\nomega_r_rpm = 100\nomega_v_rpm = 800\n[parameters.n_rods]\nvalues = [6, 10]\n'
+        '[study]\nname = "x"\nrotary_rpm = 100\nvibration_rpm = 800\n[parameters.n_rods]\nvalues = [6, 10]\n'
         '[objective]\nmaximize = "milling_power_w"\n'
     )
     result = run(write(tmp_path, "s.toml", text), config)
@@ -197,7 +197,7 @@ def test_a_mill_that_cannot_exist_is_an_infeasible_point_with_its_reason(tmp_pat
 
 def test_grid_points_round_integer_parameters(tmp_path, config):
     text = (
-        '[study]\nname = "x"\nomega_r_rpm = 100\nomega_v_rpm = 800\n[parameters.n_rods]\n'
+        '[study]\nname = "x"\nrotary_rpm = 100\nvibration_rpm = 800\n[parameters.n_rods]\n'
         'grid = { start = 2, stop = 4, num = 5 }\n[objective]\nmaximize = "gamma"\n'
     )
     points = grid_points(load_study(write(tmp_path, "s.toml", text)))

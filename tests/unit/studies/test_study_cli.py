@@ -22,7 +22,7 @@ def test_json_then_resume_then_figures_pareto_and_recipe(grid_file, tmp_path, ca
     out = tmp_path / "r.csv"
     code, res = study(capsys, grid_file, "--out", out, "--workers", "1", "--json")
     assert code == 0, res.err
-    first = json.loads(res.out)
+    first = json.loads(res.out)["result"]
     assert first["points"] == 6 and first["computed"] == 6 and first["reused"] == 0
     assert first["best"]["feasible"] and out.read_text().startswith("# millctl study fingerprint=")
     recipe = tmp_path / "best.toml"
@@ -32,7 +32,7 @@ def test_json_then_resume_then_figures_pareto_and_recipe(grid_file, tmp_path, ca
         "--pareto", "milling_power_w,-impact_energy_p90_j", "--recipe", recipe, "--dose-kj-g", "0.5",
     )  # fmt: skip
     assert code == 0, res.err
-    again = json.loads(res.out)
+    again = json.loads(res.out)["result"]
     assert again["computed"] == 0 and again["reused"] == 6 and again["best"] == first["best"]
     assert {p.rsplit("/", 1)[-1] for p in again["figures"]} == {"heatmap.png", "sensitivity.png", "pareto.png"}
     assert again["pareto_front"] and all(r["feasible"] for r in again["pareto_front"])
@@ -40,7 +40,7 @@ def test_json_then_resume_then_figures_pareto_and_recipe(grid_file, tmp_path, ca
     # the recipe passes the same pre-flight as any other, and mills to the dose at the best point
     assert main(["--config", str(CONFIG_FILE), "recipe", "check", str(recipe)]) == 0
     text = recipe.read_text()
-    assert "dose_kj_g = 0.5" in text and f"rotary_rpm = {first['best']['omega_r_rpm']!r}" in text
+    assert "dose_kj_g = 0.5" in text and f"rotary_rpm = {first['best']['rotary_rpm']!r}" in text
 
 
 def test_table_on_stdout_summary_on_stderr(grid_file, tmp_path, capsys):
@@ -64,12 +64,12 @@ def test_bad_arguments_exit_1(grid_file, tmp_path, capsys):
 def test_shipped_studies_near_the_papers_point(name, best, config):
     """The shipped studies on a few points around the paper's 200/800 rpm (the full grids run from the CLI)."""
     data = load_study(STUDIES / name).model_dump(mode="json")
-    data["parameters"] = {"omega_r_rpm": {"values": [184.0, 188.0, 192.0]}, "omega_v_rpm": {"values": [750.0, 800.0]}}
+    data["parameters"] = {"rotary_rpm": {"values": [184.0, 188.0, 192.0]}, "vibration_rpm": {"values": [750.0, 800.0]}}
     small = Study.model_validate(data)
     result = StudyRunner(small, config, name).run(SerialBackend())
     if best is not None:
         # the paper's reasoning reproduces its conclusion: 200/800 less the interlock's 5 % margin
-        assert (result.best["omega_r_rpm"], result.best["omega_v_rpm"]) == best
+        assert (result.best["rotary_rpm"], result.best["vibration_rpm"]) == best
         # ... where the paper's own model, run in time, and the corrected laws disagree
         assert result.best["margin_paper_every_cycle_rpm"] < 0.0
         assert result.best["margin_corrected_every_phase_rpm"] < 0.0
