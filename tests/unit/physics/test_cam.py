@@ -81,3 +81,21 @@ def test_config_cam_shape_reaches_the_model_and_the_envelope(config):
     single_env = Envelope.from_config(config, law=LimitLaw.CORRECTED_EVERY_PHASE)
     double_env = Envelope.from_config(double, law=LimitLaw.CORRECTED_EVERY_PHASE)
     assert float(double_env.omega_r_limit_rpm(400.0)) == pytest.approx(float(single_env.omega_r_limit_rpm(800.0)))
+
+
+def test_batch_kernels_see_the_lift(pair):
+    from millctl.physics.batch import SceneBatch, first_impacts
+
+    single, double = pair
+    w_r, w_v = rpm_to_rad_s(150.0), rpm_to_rad_s(np.array([300.0, 400.0]))
+    alpha0 = np.array([0.3, 1.1])
+    d = first_impacts(SceneBatch.broadcast(double, omega_r_rad_s=w_r, omega_v_rad_s=w_v, alpha0_rad=alpha0))
+    s = first_impacts(
+        SceneBatch.broadcast(single, omega_r_rad_s=w_r, omega_v_rad_s=2.0 * w_v, alpha0_rad=2.0 * alpha0)
+    )
+    assert d["found"].all()
+    np.testing.assert_allclose(d["time_s"], s["time_s"], rtol=1e-12)
+    np.testing.assert_allclose(d["energy_j"], s["energy_j"], rtol=1e-9)
+    row = SceneBatch.from_scenes([Scene(double, w_r, float(w_v[0]), -1.0, 0.3)])
+    same = SceneBatch.from_scenes([Scene(single, w_r, 2.0 * float(w_v[0]), -1.0, 0.6)])
+    np.testing.assert_array_equal(first_impacts(row)["time_s"], first_impacts(same)["time_s"])
