@@ -104,9 +104,23 @@ class Cam(_Strict):
 
 
 class Spring(_Strict):
-    """The four springs between the platforms, as one equivalent stiffness."""
+    """The spring term k of the paper's eqs 4–9: a per-rod effective stiffness, not the platform springs' rate.
 
-    stiffness_n_per_m: Annotated[float, Field(ge=0.0, le=1e7)]
+    The paper puts a spring force k z on one rod (eq. 4), so k is the share of the four platform
+    springs that acts on one rod. Only values of the order of m ω_v² (Set A: 92 N/m; 90–450 N/m gives
+    the paper's figures) make eq. 9 meaningful; a real platform spring rate (10⁴–10⁵ N/m) makes eq. 9's
+    numerator m g − (k − m ω_v²) r_d ≤ 0 up to ω_v = √(k/m − g/r_d), where the law admits no rotation
+    (``millctl config check`` warns; docs/model.md, errata k).
+    """
+
+    stiffness_n_per_m: Annotated[
+        float,
+        Field(
+            ge=0.0,
+            le=1e7,
+            description="k, per-rod effective stiffness of eqs 4–9 (N/m); not the platform springs' rate",
+        ),
+    ]
 
 
 class Model(_Strict):
