@@ -233,6 +233,8 @@ class Timing(_Strict):
     node_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     controller_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     setpoint_period_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.1
+    challenge_lifetime_s: Annotated[float, Field(gt=0.0, le=10.0)] = 0.5
+    """How long a NodeStatus challenge may be echoed by a heartbeat (s): bounds what a replay can feed."""
 
     @model_validator(mode="after")
     def _watchdog_after_heartbeat(self) -> Timing:
@@ -240,6 +242,12 @@ class Timing(_Strict):
             raise ValueError(
                 f"watchdog_timeout_s = {self.watchdog_timeout_s} must be ≥ 2 × heartbeat_period_s "
                 f"= {2.0 * self.heartbeat_period_s}: one lost heartbeat must not trip"
+            )
+        if self.challenge_lifetime_s < self.watchdog_timeout_s:
+            raise ValueError(
+                f"challenge_lifetime_s = {self.challenge_lifetime_s} must be ≥ watchdog_timeout_s "
+                f"= {self.watchdog_timeout_s}: a few lost NodeStatus frames must not starve the watchdog "
+                "(docs/protocol.md, heartbeat freshness)"
             )
         return self
 
