@@ -30,7 +30,7 @@ from millctl.physics.dose import whole_mill_rate_hz
 from millctl.protocol import PhysicsTelemetry
 from millctl.recipes.plan import RecipePlan, StepPlan
 from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
-from millctl.records import RecordWriter
+from millctl.records import RecordQueue, RecordWriter
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +62,7 @@ class RecipeRunner:
         records_dir: Path,
         config_sha256: str,
         source: str = "recipe",
+        records: RecordQueue | None = None,
     ) -> None:
         if not plan.ok:
             raise InterlockError(f"recipe {loaded.source} does not pass its pre-flight: {plan.violations[0]}")
@@ -87,7 +88,7 @@ class RecipeRunner:
         self._dose_j_g = 0.0
         """Specific energy dose of the current step so far (J/g), from the node's physics telemetry."""
         self._dose_clock_s = clock.now()
-        self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1)
+        self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1, queue=records)
         self._write(
             "start",
             recipe=loaded.recipe.recipe.name,
@@ -142,12 +143,12 @@ class RecipeRunner:
         if self._begun_index != self.index:
             self._begin_step()
 
-    def abort(self, source: str = "operator") -> None:
-        """Abort: a controlled stop inside the envelope, then ABORTED."""
+    def abort(self, source: str = "operator", reason: str = "") -> None:
+        """Abort: a controlled stop inside the envelope, then ABORTED (``reason``: why, besides who)."""
         if self.finished or self.state is RunState.STOPPING:
             raise CommandRefused(f"cannot abort a run that is {self.state}")
-        self._write("abort", source=source, step=self.index + 1)
-        self._stop(RunState.ABORTED, f"aborted by {source}")
+        self._write("abort", source=source, step=self.index + 1, reason=reason)
+        self._stop(RunState.ABORTED, f"aborted by {source}" + (f": {reason}" if reason else ""))
 
     # ------------------------------------------------------------------ internals
     def _enter(self, state: RunState, reason: str) -> None:
