@@ -185,6 +185,11 @@ def ride(scene: Scene, spin: Spin = "free", horizon_s: float | None = None, fric
             else:
                 y[1] = w_r
             mode = choose(t, y)
+    if t < horizon and len(phases) >= _MAX_PHASES:
+        raise PhysicsInputError(
+            f"slip ride chattered: {_MAX_PHASES} stick/slip changes by t = {t:.6g} s of {horizon:.6g} s "
+            f"(μ = {mu}, spin {spin}); shorten the horizon or see docs/model.md, slip"
+        )
     return WallRide(False, math.nan, math.nan, math.nan, math.nan, tuple(phases), slip_time)
 
 
