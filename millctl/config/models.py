@@ -107,10 +107,10 @@ class Spring(_Strict):
     """The spring term k of the paper's eqs 4–9: a per-rod effective stiffness, not the platform springs' rate.
 
     The paper puts a spring force k z on one rod (eq. 4), so k is the share of the four platform
-    springs that acts on one rod. Only values of the order of m ω_v² (Set A: 92 N/m; 90–450 N/m gives
-    the paper's figures) make eq. 9 meaningful; a real platform spring rate (10⁴–10⁵ N/m) makes eq. 9's
-    numerator m g − (k − m ω_v²) r_d ≤ 0 up to ω_v = √(k/m − g/r_d), where the law admits no rotation
-    (``millctl config check`` warns; docs/model.md, errata k).
+    springs that acts on one rod. Only values of the order of m ω_v² (tens to hundreds of N/m; Set A's
+    92 N/m gives eq. 9's 200 rpm at ω_v = 800 rpm) make eq. 9 meaningful; a real platform spring rate
+    (10⁴–10⁵ N/m) makes eq. 9's numerator m g − (k − m ω_v²) r_d ≤ 0 up to ω_v = √(k/m − g/r_d),
+    where the law admits no rotation (``millctl config check`` warns; docs/model.md, errata k).
     """
 
     stiffness_n_per_m: Annotated[
