@@ -143,9 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     for key, value in numbers.items():
         _emit(f"{key}: {value}")
     for effect in effects:
-        _emit(
-            f"slip, μ = {effect['friction']:g}, {effect['phases']} cam phases, one rod from the bottom, one revolution:"
-        )
+        _emit("")
+        _emit(f"μ = {effect['friction']:g}, {effect['phases']} cam phases, one rod from the bottom, one revolution:")
+        _emit("")
         _emit("| model | detaching phases | θ_d (°) | flight (ms) | wall impact (mJ) | sliding before (ms) |")
         _emit("|---|---|---|---|---|---|")
         for r in effect["rows"]:
