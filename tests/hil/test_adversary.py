@@ -229,7 +229,8 @@ def test_a_second_sender_on_the_nodes_frames_trips_the_controller(
     # from the first forgery: e2e_error_limit genuine DriveTelemetry frames made REPEATED, one more period for a
     # genuine frame the forger (another process reading the bus) answers too late, and a controller tick
     periods = m.config.interlock.e2e_error_limit + 1
-    bound_s = m.bounds.scaled(periods * (m.codec.cycle_time_s(DriveTelemetry) or 0.0) + m.config.timing.controller_tick_s)
+    period_s = m.codec.cycle_time_s(DriveTelemetry) or 0.0
+    bound_s = m.bounds.scaled(periods * period_s + m.config.timing.controller_tick_s)
     measured_s = stop.t - forger.first_sent_t
     report_timing(capsys, "trip_on_second_sender", transport.name, measured_s, bound_s)
     assert measured_s <= bound_s
