@@ -51,6 +51,8 @@ class Background:
     sent: int = 0
     first_sent_t: float | None = None
     """Wall-clock time just before its first frame went out (None before)."""
+    refused: int = 0
+    """Sends the interface refused (its transmit queue full)."""
     _halt: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
 
@@ -158,7 +160,11 @@ class Adversary:
                 credit = min(due, rate_hz * 0.1)  # never more than 0.1 s of frames at once after a stall
                 with self._lock:
                     for _ in range(int(credit)):
-                        self.bus.send(frame)
+                        try:
+                            self.bus.send(frame)
+                        except can.CanError:  # the interface's queue is full: the bus is saturated
+                            sender.refused += 1
+                            break
                         sender.sent += 1
                 time.sleep(BURST_S)
 
