@@ -62,7 +62,11 @@ PARAMS = (
     "restitution",
     "cam_to_vial_m",
 )
-"""Columns of a scene row: SI units; ``paper`` 1.0 for the paper variant, 0.0 corrected; k/m in 1/s²."""
+"""Columns of a scene row: SI units; ``paper`` 1.0 for the paper variant, 0.0 corrected; k/m in 1/s².
+
+``omega_v_rad_s`` and ``alpha0_rad`` are the cam's *lift* speed and phase (h·ω_v, h·α0 for a cam of
+h strokes per revolution, :mod:`millctl.physics.cam`), so ``alpha_d_rad`` in a result is a lift phase.
+"""
 (_R0, _RR, _RD, _G, _WR, _WV, _TH0, _A0, _N, _PAPER, _KM, _M, _E, _L) = range(len(PARAMS))
 
 OUT = (
@@ -127,9 +131,9 @@ def scene_row(scene: Scene) -> FloatArray:
             m.eccentricity_m,
             m.g_m_s2,
             scene.omega_r_rad_s,
-            scene.omega_v_rad_s,
+            scene.lift_omega_rad_s,  # the cam's lift (millctl.physics.cam): h·ω_v, h·α0
             scene.theta0_rad,
-            scene.alpha0_rad,
+            scene.lift_alpha0_rad,
             float(m.n_rods),
             1.0 if m.variant is ModelVariant.PAPER else 0.0,
             m.spring_n_per_m / m.rod_mass_kg,

@@ -1,6 +1,6 @@
 """Level (b), node telemetry: a per-revolution summary cheap enough to run live.
 
-For K cam phases α0 (default 4, evenly spaced) one rod starts pinned at the
+For K cam phases α0 (default 4, evenly spaced over one lift cycle) one rod starts pinned at the
 lowest angle where it could possibly detach (sin θ = A/(g + c) for N/m = A − g_eff sin θ,
 g_eff ∈ [g − c, g + c]; the bottom when g − c < 0), with cam phase α0 there, and is
 followed with the exact engine through one revolution: detachment (eq. 7 or the
@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 from millctl.config.models import ModelVariant
 from millctl.errors import PhysicsInputError
+from millctl.physics.cam import strokes
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import RodState, WallState, depart
@@ -164,7 +165,8 @@ def _sample(scene: Scene) -> tuple[tuple[float, float, float, float, bool] | Non
         return None, check
     t_f = contact.flight_time_s  # the root in the flight's own clock: no cancellation of t_contact − t_d
     _, _, vx, vy = flight.rel(scene, contact.time_s)
-    vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
+    w_lift = scene.lift_omega_rad_s
+    vyc = model.eccentricity_m * w_lift * math.cos(scene.lift_alpha0_rad + w_lift * contact.time_s)
     speed_abs = math.hypot(vx, vy + vyc)
     on_wall = contact.partner == WALL
     energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, backed=True)  # partners are held
@@ -195,12 +197,14 @@ def revolution_summary(
     shear = _mean_shear_pa(model, w_r)
     theta_start = _start_angle_rad(model, w_r, w_v)
     if theta_start is None:  # pinned at every phase: check the carriage over a revolution from the bottom
-        bottom = [Scene(model, w_r, w_v, -0.5 * math.pi, 2.0 * math.pi * k / cam_phases) for k in range(cam_phases)]
+        lift_cycle = 2.0 * math.pi / strokes(model.cam)
+        bottom = [Scene(model, w_r, w_v, -0.5 * math.pi, lift_cycle * k / cam_phases) for k in range(cam_phases)]
         return _pinned(shear, [no_slip_check(s, horizon_s=2.0 * math.pi / w_r) for s in bottom])
     samples = []
     checks = []
     for k in range(cam_phases):
-        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / cam_phases)
+        # evenly spaced lift phases: a double-acting cam repeats its lift twice per cam revolution
+        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / (cam_phases * strokes(model.cam)))
         result, check = _sample(scene)
         checks.append(check)
         if result is not None:
