@@ -14,7 +14,6 @@ import itertools
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -104,7 +103,7 @@ class StudyRunner:
         }
         self._fixed = {k: float(v) for k, v in fixed.items() if v is not None}
         self.fingerprint = fingerprint_of(study.model_dump(mode="json"), self._base_data)
-        self.store = store if store is not None else ResultsStore(Path("/dev/null"), self.fingerprint)
+        self.store = store if store is not None else ResultsStore(None, self.fingerprint)
         self._batch_size = batch_size
         self._index: dict[str, int] = {}
         self.computed = 0

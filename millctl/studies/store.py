@@ -49,19 +49,22 @@ def _pyarrow() -> Any:
 
 
 class ResultsStore:
-    """Rows of one study in one file, keyed by the point's parameters."""
+    """Rows of one study in one file, keyed by the point's parameters; ``path`` None keeps them in memory only."""
 
-    def __init__(self, path: Path, fingerprint: str) -> None:
-        self.path = Path(path)
+    def __init__(self, path: Path | None, fingerprint: str) -> None:
+        self.path = None if path is None else Path(path)
+        if self.path is not None and self.path.exists() and not self.path.is_file():
+            # the file is replaced atomically (rename over it): never over a device, a pipe or a directory
+            raise InvalidInputError(f"results file {self.path} exists and is not a regular file; give another --out")
         self.fingerprint = fingerprint
-        self.csv = self.path.suffix.lower() == ".csv"
+        self.csv = self.path is not None and self.path.suffix.lower() == ".csv"
         self.rows: dict[str, dict[str, Any]] = {}
         self._columns: list[str] | None = None
 
     # ------------------------------------------------------------------ reading
     def resume(self) -> int:
         """Read the rows already in the file (same study only); return how many."""
-        if not self.path.exists():
+        if self.path is None or not self.path.exists():
             return 0
         rows, fingerprint = self._read_csv() if self.csv else self._read_parquet()
         if fingerprint != self.fingerprint:
@@ -74,8 +77,13 @@ class ResultsStore:
         self._columns = list(rows[0]) if rows else None
         return len(rows)
 
+    def _file(self) -> Path:
+        if self.path is None:
+            raise AssertionError("an in-memory store has no file")
+        return self.path
+
     def _read_csv(self) -> tuple[list[dict[str, Any]], str | None]:
-        text = self.path.read_text(encoding="utf-8")
+        text = self._file().read_text(encoding="utf-8")
         first, _, body = text.partition("\n")
         fingerprint = first.removeprefix(CSV_MARK) if first.startswith(CSV_MARK) else None
         complete = body if body.endswith("\n") else body[: body.rfind("\n") + 1]  # a cut-off last row is dropped
@@ -99,7 +107,7 @@ class ResultsStore:
         fresh = [r for r in rows if r["key"] not in self.rows]
         for row in fresh:
             self.rows[row["key"]] = row
-        if not fresh:
+        if not fresh or self.path is None:
             return
         if self.csv:
             self._append_csv(fresh)
@@ -107,11 +115,12 @@ class ResultsStore:
             self._write_parquet()
 
     def _append_csv(self, rows: list[dict[str, Any]]) -> None:
-        new_file = not self.path.exists() or self._columns is None
+        path = self._file()
+        new_file = not path.exists() or self._columns is None
         if new_file:
             self._columns = list(rows[0])
         assert self._columns is not None
-        with self.path.open("w" if new_file else "a", encoding="utf-8", newline="") as f:
+        with path.open("w" if new_file else "a", encoding="utf-8", newline="") as f:
             if new_file:
                 f.write(f"{CSV_MARK}{self.fingerprint}\n")
             writer = csv.DictWriter(f, fieldnames=self._columns, extrasaction="ignore", lineterminator="\n")
@@ -125,13 +134,14 @@ class ResultsStore:
         pa = _pyarrow()
         table = pa.Table.from_pylist(self.ordered())
         table = table.replace_schema_metadata({FINGERPRINT_KEY: self.fingerprint})
-        write_atomically(self.path, lambda tmp: pa.parquet.write_table(table, tmp))
+        write_atomically(self._file(), lambda tmp: pa.parquet.write_table(table, tmp))
 
     def reset(self) -> None:
         """Forget every row and remove the file (``--fresh``)."""
         self.rows.clear()
         self._columns = None
-        self.path.unlink(missing_ok=True)
+        if self.path is not None:
+            self.path.unlink(missing_ok=True)
 
     def ordered(self) -> list[dict[str, Any]]:
         """Every row, by point number."""

@@ -202,3 +202,19 @@ def test_grid_points_round_integer_parameters(tmp_path, config):
     )
     points = grid_points(load_study(write(tmp_path, "s.toml", text)))
     assert [p["n_rods"] for p in points] == [2, 2, 3, 4, 4]
+
+
+def test_a_study_without_a_results_file_writes_nothing(grid_file, config, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    written = []
+    monkeypatch.setattr("millctl.studies.store.write_atomically", lambda path, write: written.append(path))
+    result = run(grid_file, config)
+    assert len(result.rows) == 6 and written == [] and [p.name for p in tmp_path.iterdir()] == ["grid.toml"]
+
+
+@pytest.mark.parametrize("target", ["/dev/null", "."])
+def test_results_are_never_renamed_over_a_device_or_a_directory(target):
+    from pathlib import Path
+
+    with pytest.raises(Exception, match="not a regular file"):
+        ResultsStore(Path(target), "x")
