@@ -8,6 +8,7 @@ frozen data.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from typing import Any
@@ -22,7 +23,7 @@ from textual.worker import Worker, WorkerState
 
 from millctl.api import ControllerState, ControlOut, EnvelopeOut, EventKind, EventOut, RecipeOut, StatusOut
 from millctl.tui.format import state_style
-from millctl.tui.link import ServiceLink
+from millctl.tui.link import ServiceLink, quiet_raced_reads
 from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
 from millctl.tui.styles import CSS
 
@@ -78,7 +79,8 @@ class MillView(App[None]):
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
-        """Title the panels; until the follower connects, say so."""
+        """Title the panels; until the follower connects, say so; no traceback for a raced socket read."""
+        asyncio.get_running_loop().set_exception_handler(quiet_raced_reads)
         for panel_id, title in (("state", "controller"), ("physics", "physics"), ("links", "node links"),
                                 ("events", "events")):
             self.main_screen.query_one(f"#{panel_id}").border_title = title
