@@ -63,7 +63,7 @@ from millctl.client_errors import (
     ServiceUnavailable,
     raise_for_error,
 )
-from millctl.errors import BusError, InterlockError
+from millctl.errors import BusError, InterlockError, InvalidInputError
 
 CLIENT_HEADER = "X-Millctl-Client"
 LEASE_HEADER = "X-Millctl-Lease"
@@ -77,10 +77,32 @@ StreamItem = StatusOut | EventOut
 
 
 def default_socket_path(config: str | os.PathLike[str] | None = None) -> str:
-    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged)."""
-    from millctl.config import load_config
+    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged).
 
-    return load_config(config).config.service.socket_path
+    Resolved as the service resolves it (:mod:`millctl.config.paths`): by
+    platform convention unless the config names one, never from the working
+    folder, so a client in any folder finds the service of the same config.
+    """
+    from millctl.config import load_config
+    from millctl.config.paths import service_paths
+
+    return str(service_paths(load_config(config)).socket)
+
+
+def describe_mill(service: ServiceOut) -> str:
+    """One line naming the mill a service controls: config name, bus, simulated or real, and the socket."""
+    kind = "SIMULATED mill (embedded node)" if service.simulated else "real bus"
+    return (f"mill {service.mill_name!r} on {service.bus_interface}:{service.bus_channel} ({kind}), "
+            f"config {service.config_path}, socket {service.socket_path}")
+
+
+def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
+    """A recipe file's name and text, read on the client's side (the service opens no path a request names)."""
+    path = Path(path)
+    try:
+        return path.name, path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInputError(f"recipe {path}: cannot read it: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -223,8 +245,14 @@ def _set_furnace(temp_c: float | None, *, rate_c_per_min: float | None = None) -
 
 
 def _recipe_run(path: str | os.PathLike[str]) -> Request:
-    """Start a recipe file (a path on the service's machine; needs control)."""
-    return _post("/v1/recipe/run", {"path": str(Path(path).absolute())})
+    """Start a recipe file: read here and sent by content, never as a path on the service's disk (needs control)."""
+    name, text = read_recipe_text(path)
+    return _recipe_run_text(name, text)
+
+
+def _recipe_run_text(name: str, text: str) -> Request:
+    """Start a recipe given as its TOML text, recorded under ``name`` (needs control)."""
+    return _post("/v1/recipe/run", {"name": name, "text": text})
 
 
 def _recipe_pause(now: bool = False) -> Request:
@@ -351,6 +379,7 @@ class Operations(_Base):
     set_speeds = Operation(CommandOut, _set_speeds)
     set_furnace = Operation(CommandOut, _set_furnace)
     recipe_run = Operation(RecipeOut, _recipe_run)
+    recipe_run_text = Operation(RecipeOut, _recipe_run_text)
     recipe_pause = Operation(RecipeOut, _recipe_pause)
     recipe_resume = Operation(RecipeOut, _recipe_resume)
     recipe_abort = Operation(RecipeOut, _recipe_abort)
@@ -480,5 +509,7 @@ __all__ = [
     "ServiceUnavailable",
     "StreamItem",
     "default_socket_path",
+    "describe_mill",
     "raise_for_error",
+    "read_recipe_text",
 ]

@@ -238,8 +238,10 @@ class EventsOut(Strict):
 
 
 class ServiceOut(Strict):
-    """The running service: process, config, envelope law and margin, records."""
+    """The running service: which mill it controls, its process, config, envelope law and margin, records."""
 
+    mill_name: str = Field(description="the config's name of the mill")
+    simulated: bool = Field(description="true when the node is the embedded simulation, not a real mill")
     pid: int
     version: str
     started_unix: float = Field(description="Unix time the service started (s)")
@@ -250,14 +252,23 @@ class ServiceOut(Strict):
     bus_interface: str
     bus_channel: str
     embedded_node: bool = Field(description="the simulated node runs inside the service")
+    socket_path: str = Field(description="the Unix socket the API is served on")
     records_dir: str
+    bus_log: str = Field(description="this session's bus log file")
+    warnings: list[str] = Field(default_factory=list, description="what the operator must know about the service "
+                                "itself, e.g. records that cannot be written (the mill is controlled as before)")
 
 
 # ---------------------------------------------------------------- recipes
 class RecipeRunRequest(Strict):
-    """Run the recipe file at ``path`` (on the service's machine)."""
+    """Run a recipe sent by content: its TOML ``text``, and a ``name`` for the record (e.g. the client's file name).
 
-    path: str = Field(min_length=1, max_length=4096, description="recipe TOML file on the service's machine")
+    The service opens no path a request names: a client may be on another machine.
+    """
+
+    name: str = Field(min_length=1, max_length=255, pattern=r"^[^\x00-\x1f\x7f]+$",
+                      description="where the recipe came from, for the run record (no control characters)")
+    text: str = Field(min_length=1, max_length=512 * 1024, description="the recipe file's TOML text")
 
 
 class RecipePauseRequest(Strict):

@@ -3,6 +3,8 @@
 One-shot commands take control for their duration and give it back; when
 another client holds it they exit 2 naming the holder. E-stop needs no
 control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
+Every command names the mill it talks to (config name, bus, simulated or
+real, socket): on stderr, in the status view, and as ``mill`` in JSON.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import argparse
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from millctl.api import CommandOut, ControlOut, EventKind, EventOut, StatusOut
+from millctl.api import CommandOut, ControlOut, EventKind, EventOut, ServiceOut, StatusOut
 from millctl.cli.args import finite_float
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
@@ -66,20 +68,31 @@ def _client(args: argparse.Namespace) -> Client:
     return Client(args.socket, config=args.config, name="cli")
 
 
+def say_mill(client: Client) -> ServiceOut:
+    """Name the mill on stderr; return the service's description."""
+    from millctl.client import describe_mill
+
+    service = client.service()
+    stderr_console().print(f"millctl: {describe_mill(service)}", markup=False, highlight=False)
+    return service
+
+
 def _status(args: argparse.Namespace) -> int:
     with _client(args) as client:
+        service = client.service()
         status = client.status()
         control = client.control_state()
     if args.json:
-        print_json(args, {"status": status, "control": control})
+        print_json(args, {"mill": service, "status": status, "control": control})
     else:
-        stdout_console().print(render_status(status, control))
+        stdout_console().print(render_status(status, control, service=service))
     return int(ExitCode.OK)
 
 
 def _set(args: argparse.Namespace) -> int:
     results = []
     with _client(args) as client, client.control(force=args.force):
+        say_mill(client)
         results.append(
             client.set_speeds(
                 args.rot_rpm,
@@ -96,6 +109,7 @@ def _set(args: argparse.Namespace) -> int:
 
 def _simple(args: argparse.Namespace) -> int:
     with _client(args) as client:
+        say_mill(client)
         if args.action == "estop":
             result = client.estop()
         else:
@@ -122,13 +136,22 @@ def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
     return f"{value:{fmt}}{unit}"
 
 
-def render_status(status: StatusOut, control: ControlOut | None = None, events: Any = ()) -> Any:
-    """A compact rich view: state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
+def render_status(
+    status: StatusOut, control: ControlOut | None = None, events: Any = (), service: ServiceOut | None = None
+) -> Any:
+    """A compact rich view: mill, warnings, state, setpoints vs measured, limit, furnace, physics, links, events."""
     from rich.table import Table
+    from rich.text import Text
+
+    from millctl.client import describe_mill
 
     table = Table.grid(padding=(0, 2))
     table.add_column(style="bold")
     table.add_column()
+    if service is not None:
+        table.add_row("mill", describe_mill(service))
+        for warning in service.warnings:
+            table.add_row("WARNING", Text(warning, style="bold red"))
     s = status
     state = s.state + (f" — {s.trip_cause}" if s.trip_cause else "")
     table.add_row("state", f"{state}   node {s.node_state or '—'} {' '.join(s.node_faults)}")
@@ -175,22 +198,26 @@ def _watch(args: argparse.Namespace) -> int:
     console = stderr_console()
     events: deque[EventOut] = deque(maxlen=6)
     with _client(args) as client:
+        service = client.service()
         control = client.control_state()
         status = client.status()
         try:
-            with Live(render_status(status, control), console=console, refresh_per_second=4) as live:
+            first = render_status(status, control, service=service)
+            with Live(first, console=console, refresh_per_second=4) as live:
                 for item in client.stream():
                     if isinstance(item, EventOut):
                         events.append(item)
                         if item.kind is EventKind.CONTROL:
                             control = client.control_state()
+                        elif item.kind is EventKind.RECORDS:
+                            service = client.service()
                     else:
                         status = item
-                    live.update(render_status(status, control, events))
+                    live.update(render_status(status, control, events, service=service))
         except KeyboardInterrupt:
             return int(ExitCode.OK)
     console.print("millctl watch: the service closed the stream", markup=False)
     return int(ExitCode.OK)
 
 
-__all__ = ["register", "render_status"]
+__all__ = ["register", "render_status", "say_mill"]

@@ -1,9 +1,12 @@
 """``millctl recipe run|pause|resume|abort|status``: run recipes in the controller service.
 
-``recipe run`` pre-flights the recipe, connects to the service (starting the
-embedded default service and simulated node in a process of its own when none
-is running), starts the run, and follows it with a progress display on
-stderr and a summary on stdout. The run lives in the service, so closing the
+``recipe run`` pre-flights the recipe, connects to the service, starts the run,
+and follows it with a progress display on stderr and a summary on stdout; it
+names the mill it talks to first. When no service runs it starts one with the
+simulated node in a process of its own only if the configuration's bus is the
+simulated one (``virtual``) or ``--sim`` asks for it: against a real-bus
+configuration it says so and exits 3, so it never reports a run done on a
+simulation while the real mill stood still. The run lives in the service, so closing the
 terminal does not stop it. Ctrl+C once pauses the run now; twice aborts it
 with a controlled stop. A trip or an abort ends with exit code 2.
 """
@@ -43,6 +46,8 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     run.add_argument("file", help="the recipe (TOML)")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument("--detach", action="store_true", help="start the run and return; follow it with `recipe status`")
+    run.add_argument("--sim", action="store_true",
+                     help="with no service running, start a simulated mill even if the config names a real bus")
     run.set_defaults(handler=_run)
     pause = sub.add_parser("pause", parents=[socket_opt], help="pause the running recipe at the next step boundary")
     pause.add_argument("--now", action="store_true", help="pause now, holding the current setpoints")
@@ -61,7 +66,10 @@ def _client(args: argparse.Namespace, name: str = "recipe") -> Client:
 
 
 def _action(args: argparse.Namespace) -> int:
+    from millctl.cli.client_cmd import say_mill
+
     with _client(args) as client, client.control():
+        say_mill(client)
         if args.action == "pause":
             progress = client.recipe_pause(now=args.now)
         elif args.action == "resume":
@@ -73,7 +81,10 @@ def _action(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
+    from millctl.cli.client_cmd import say_mill
+
     with _client(args) as client:
+        say_mill(client)
         result = client.recipe()
     if args.json:
         print_json(args, result)
@@ -86,11 +97,12 @@ def _status(args: argparse.Namespace) -> int:
 class _EmbeddedService:
     """A ``millctl serve`` process started for this run, in its own session (Ctrl+C reaches only us)."""
 
-    def __init__(self, args: argparse.Namespace, socket_path: str) -> None:
+    def __init__(self, args: argparse.Namespace, socket_path: str, *, sim: bool) -> None:
         command = [sys.executable, "-m", "millctl"]
         if args.config:
             command += ["--config", args.config]
-        command += ["serve", "--socket", socket_path]
+        command += ["serve", "--socket", socket_path] + (["--sim"] if sim else [])
+        self.socket_path = socket_path
         log_dir = Path(socket_path).parent
         log_dir.mkdir(parents=True, exist_ok=True)
         self.log_path = log_dir / "embedded-service.log"
@@ -125,7 +137,7 @@ class _EmbeddedService:
 
 def _run(args: argparse.Namespace) -> int:
     from millctl.cli.recipe_cmd import preflight
-    from millctl.client import Client, ServiceUnavailable
+    from millctl.client import Client, ServiceUnavailable, describe_mill
 
     loaded, plan = preflight(args)  # every violation, before anything moves
     client = Client(args.socket, config=args.config, name="recipe")
@@ -136,9 +148,12 @@ def _run(args: argparse.Namespace) -> int:
             client.status()
         except ServiceUnavailable:
             assert client.socket_path is not None
-            err.print(f"no service on {client.socket_path}: starting the embedded service and simulated node")
-            embedded = _EmbeddedService(args, client.socket_path)
+            embedded = _start_simulation(args, client.socket_path, err)
+            if embedded.socket_path != client.socket_path:
+                client.close()
+                client = Client(embedded.socket_path, name="recipe")
             embedded.wait_ready(client)
+        err.print(f"millctl: {describe_mill(client.service())}", markup=False, highlight=False)
         client.take_control()
         started = client.recipe_run(os.path.abspath(loaded.source)).progress
         assert started is not None  # the service answers a started run with its progress
@@ -159,6 +174,27 @@ def _run(args: argparse.Namespace) -> int:
         if embedded is not None:
             embedded.stop()
     return _summary(args, final)
+
+
+def _start_simulation(args: argparse.Namespace, socket_path: str, err: Any) -> _EmbeddedService:
+    """Start a simulated mill for this run, only if the config's bus is the simulated one or ``--sim`` asks."""
+    from millctl.config import load_config
+
+    bus = load_config(args.config).config.bus
+    real = bus.interface != "virtual"
+    if real and not args.sim:
+        raise BusError(
+            f"no service on {socket_path}, and the configuration names a real bus ({bus.interface}:"
+            f"{bus.channel}): not starting a simulated mill in its place. Start the service (`millctl serve`, or "
+            "its systemd unit: docs/deployment.md), pass --socket, or --sim for a simulation"
+        )
+    if real:  # --sim against a real-bus config: the simulation gets a socket of its own, never the real mill's
+        from millctl.config.paths import runtime_dir
+
+        socket_path = str(runtime_dir() / f"millctl-sim-{os.getpid()}.sock")
+    err.print(f"no service on {socket_path}: starting a SIMULATED mill (embedded service and simulated node)",
+              markup=False)
+    return _EmbeddedService(args, socket_path, sim=real)
 
 
 class _Interrupts:

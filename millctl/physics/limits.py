@@ -156,6 +156,21 @@ def switch_omega_v_rad_s(p: LimitParams) -> float:
     return float(np.sqrt(p.spring_n_per_m / p.rod_mass_kg))
 
 
+def eq9_vacuous_below_rad_s(p: LimitParams) -> float:
+    """The cam speed up to which printed eq. 9's numerator m g − (k − m ω_v²) r_d is ≤ 0 (rad/s); 0 if never.
+
+    The numerator is ≤ 0 while m ω_v² r_d ≤ k r_d − m g, i.e. for ω_v ≤ √(k/m − g/r_d) when k r_d > m g:
+    there eq. 9 admits no rotation at all (the law is vacuous). With k a per-rod effective stiffness
+    (Set A: 92 N/m, k r_d = 0.092 N against m g = 0.869 N) that never happens; a platform spring rate
+    read as k (10⁴–10⁵ N/m) makes eq. 9 vacuous over any drivable cam speed (docs/model.md, errata k).
+    """
+    m, k, r_d = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m
+    excess = k * r_d - m * p.g_m_s2
+    if r_d <= 0.0 or excess <= 0.0:
+        return 0.0
+    return float(np.sqrt(excess / (m * r_d)))
+
+
 def sin_alpha_bound_consistent(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
     """The cam phase bound that follows from eq. 7 (the dimensionally consistent eq. 8b).
 
@@ -206,6 +221,7 @@ __all__ = [
     "LimitParams",
     "RegimeFlags",
     "eq7_denominator",
+    "eq9_vacuous_below_rad_s",
     "is_every_cycle_bound",
     "omega_r_max",
     "omega_r_max_corrected_best_phase",

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
 import time
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
@@ -47,6 +46,7 @@ from millctl.controller import Controller
 from millctl.safety import InterlockRefused
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
 from millctl.service.journal import finite
+from millctl.service.limits import BodyLimit
 from millctl.service.runtime import ServiceRuntime
 
 STATUS_PERIOD_S = 0.25
@@ -71,7 +71,10 @@ ClientName = Annotated[
     str | None,
     Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
 ]
-LeaseId = Annotated[str | None, Header(max_length=64, description="the lease id from POST /v1/control/take")]
+LeaseId = Annotated[
+    str | None,
+    Header(pattern=r"^[A-Za-z0-9_-]{1,64}$", description="the lease id from POST /v1/control/take"),
+]
 
 
 def create_app(runtime: ServiceRuntime) -> FastAPI:
@@ -83,6 +86,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         "it. Every command goes through the controller's interlock; E-stop is always accepted.",
     )
     install_error_handlers(app)
+    app.add_middleware(BodyLimit, max_bytes=runtime.config.service.max_request_bytes)
     rt = runtime
 
     def source(name: str | None) -> str:
@@ -118,14 +122,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     @app.get("/v1/service", response_model=ServiceOut, responses=READ_RESPONSES, tags=["watch"])
     def service() -> ServiceOut:
-        """The running service: process, config (path, sha256), envelope law and margin, bus, records."""
-        env = rt.controller.envelope
-        return ServiceOut(
-            pid=os.getpid(), version=__version__, started_unix=rt.started_unix, config_path=rt.loaded.source,
-            config_sha256=rt.loaded.sha256, law=env.law.value, margin=env.margin,
-            bus_interface=rt.config.bus.interface, bus_channel=rt.config.bus.channel,
-            embedded_node=rt.node is not None, records_dir=str(rt.records_dir),
-        )
+        """The running service: which mill (name, bus, simulated or not), process, config, envelope, records."""
+        return rt.describe()
 
     @app.get("/v1/envelope", response_model=EnvelopeOut, responses=READ_RESPONSES, tags=["envelope"])
     def envelope(points: Annotated[int, Query(ge=2, le=1001)] = 41) -> EnvelopeOut:
@@ -237,10 +235,14 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
         """Emergency stop: needs no lease and is always accepted."""
-        with rt.lock:
-            rt.recipe.abort_if_active(source(x_millctl_client))
-            rt.controller.estop(source=source(x_millctl_client))
-            return CommandOut(message="E-STOP", state=rt.controller.state)
+        who = source(x_millctl_client)
+
+        def act(c: Controller) -> CommandOut:
+            rt.recipe.abort_if_active(who)
+            c.estop(source=who)
+            return CommandOut(message="E-STOP", state=c.state)
+
+        return rt.call(act, needs_node=False, urgent=True)
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(
@@ -278,15 +280,22 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
     def recipe() -> RecipeOut:
         """Progress of the current (or last) recipe run."""
-        with rt.lock:
+        def read(c: Controller) -> RecipeOut:
             progress = rt.recipe.progress()
             shown = RecipeProgress.model_validate(finite(progress)) if progress is not None else None
             return RecipeOut(active=rt.recipe.active, progress=shown)
 
+        return rt.call(read, needs_node=False)
+
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:
-        """Load, pre-flight and start a recipe (refused with every violation if its plan leaves the envelope)."""
-        return recipe_action(x_millctl_lease, lambda who: rt.recipe.run(body.path, rt.config, who))
+        """Pre-flight and start a recipe sent as its TOML text; refused with every violation if it leaves the envelope.
+
+        The service opens no path a request names: a client may be on another machine.
+        """
+        rt.leases.check(x_millctl_lease)
+        loaded, plan = rt.recipe.prepare(body.name, body.text, rt.config)  # in this request's thread, not the loop
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who))
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_pause(

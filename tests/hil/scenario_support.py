@@ -175,7 +175,7 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = ("watchdog_timeout_s", "min_stale_s", "setpoint_refresh_s")
+VM_SCALED_KEYS = ("watchdog_timeout_s", "challenge_lifetime_s", "min_stale_s", "setpoint_refresh_s")
 """Timeouts of the config multiplied by the VM's factor there: Python ~10x slower cannot meet the host's."""
 
 

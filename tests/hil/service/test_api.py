@@ -16,7 +16,7 @@ import pytest
 from millctl.api import ControllerState, EventKind, EventOut, RunState, StatusOut
 from millctl.cli import main
 from millctl.client import AsyncClient, ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
-from millctl.errors import ExitCode, InterlockError
+from millctl.errors import ExitCode, InterlockError, InvalidInputError
 from millctl.records import read_records
 from tests.support.service import Service, wait_for
 
@@ -229,8 +229,11 @@ def test_a_recipe_runs_pauses_and_aborts_and_a_bad_one_is_refused(service: Servi
             client.recipe_run(bad)
         assert refused.value.code == "recipe_refused"
         assert any(r.quantity == "omega_r" and r.value == 250.0 for r in refused.value.refusals)
-        with pytest.raises(RequestInvalid):
+        with pytest.raises(InvalidInputError):  # read by the client: the service opens no path
             client.recipe_run(tmp_path / "missing.toml")
+        with pytest.raises(RequestInvalid) as invalid:  # sent by content: the service names what is wrong
+            client.recipe_run_text("broken.toml", "[recipe]\nname = 3\n")
+        assert "broken.toml" in str(invalid.value) and invalid.value.field == "text"
         started = client.recipe_run(DEMO)
         assert started.active is True and started.progress is not None and started.progress.steps == 4
         with pytest.raises(ServiceRefused):
@@ -281,4 +284,5 @@ def test_sigterm_stops_cleanly_removes_the_socket_and_records_it(service: Servic
     assert not service.socket.exists()
     records = list(read_records(service.records / "events.jsonl"))
     assert records[-1]["kind"] == "service" and "SIGTERM" in records[-1]["message"]
-    assert Path(service.records / "bus" / "bus.log").stat().st_size > 0
+    (bus_log,) = (service.records / "bus").glob("bus_*.log")  # this session's
+    assert bus_log.stat().st_size > 0

@@ -58,7 +58,7 @@ def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after():
         config = fast_mill(directory)
         result = run_millctl(config, "recipe", "run", str(recipe(directory)), timeout_s=120)
         assert result.returncode == 0, result.stderr
-        assert "starting the embedded service" in result.stderr
+        assert "starting a SIMULATED mill" in result.stderr
         assert "recipe short: DONE" in result.stdout
         assert not (directory / "mill.sock").exists()
 
