@@ -44,6 +44,15 @@ class ModelVariant(enum.StrEnum):
     CORRECTED = "corrected"
 
 
+class CamShape(enum.StrEnum):
+    """The vibration cam's shape (docs/model.md#cam-shapes, :mod:`millctl.physics.cam`)."""
+
+    SINGLE = "single"
+    """The paper's circular eccentric: one lift stroke per cam revolution, r_d sin α."""
+    DOUBLE = "double"
+    """The paper's proposed elliptical double-acting cam: two strokes per revolution, r_d sin 2α."""
+
+
 class Material(_Strict):
     """Elastic and mass properties of a rod or vial material."""
 
@@ -96,11 +105,19 @@ class Cam(_Strict):
     """Cam eccentricity r_d, the vibration amplitude (mm)."""
     cam_to_vial_m: Annotated[float, Field(gt=0.0, le=5.0)]
     """Distance l from the cam centre to the vial centre at its highest point (m)."""
+    shape: CamShape = CamShape.SINGLE
+    """Circular single-acting (the paper's mill) or elliptical double-acting (its proposal)."""
 
     @property
     def eccentricity_m(self) -> float:
         """Cam eccentricity r_d (m)."""
         return self.eccentricity_mm * 1e-3
+
+
+class Powder(_Strict):
+    """The powder charge in the vial (for the specific energy dose, J per g)."""
+
+    charge_g: Annotated[float, Field(gt=0.0, le=10_000.0)] = 20.0
 
 
 class Spring(_Strict):
@@ -140,6 +157,7 @@ class Mill(_Strict):
     vial: Vial
     cam: Cam
     spring: Spring
+    powder: Powder = Powder()
 
     @model_validator(mode="after")
     def _rods_fit(self) -> Mill:
@@ -350,6 +368,7 @@ __all__ = [
     "G_M_S2",
     "Bus",
     "Cam",
+    "CamShape",
     "Drive",
     "Drives",
     "Furnace",
@@ -360,6 +379,7 @@ __all__ = [
     "MillConfig",
     "Model",
     "ModelVariant",
+    "Powder",
     "Rods",
     "Service",
     "Spring",

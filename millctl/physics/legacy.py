@@ -46,9 +46,9 @@ def _lab_arrays(scene: Scene, wall: WallState, flight: FlightState | None, ts: F
         xw, yw = np.where(flying, xf, xw), np.where(flying, yf, yw)
         vxw, vyw = np.where(flying, vxf, vxw), np.where(flying, vyf, vyw)
     m = scene.model
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * ts
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * ts
     yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * np.sin(alpha)
-    vyc = m.eccentricity_m * scene.omega_v_rad_s * np.cos(alpha)
+    vyc = m.eccentricity_m * scene.lift_omega_rad_s * np.cos(alpha)
     return xw, yc + yw, vxw, vyc + vyw, yc, vyc
 
 

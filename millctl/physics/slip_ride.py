@@ -89,7 +89,8 @@ class WallRide:
 
 def _g_eff(scene: Scene, t: float) -> float:
     m = scene.model
-    return m.g_m_s2 - m.eccentricity_m * scene.omega_v_rad_s**2 * math.sin(scene.alpha0_rad + scene.omega_v_rad_s * t)
+    w_lift = scene.lift_omega_rad_s  # the cam's lift (millctl.physics.cam)
+    return m.g_m_s2 - m.eccentricity_m * w_lift**2 * math.sin(scene.lift_alpha0_rad + w_lift * t)
 
 
 def ride(scene: Scene, spin: Spin = "free", horizon_s: float | None = None, friction: float | None = None) -> WallRide:
@@ -142,7 +143,7 @@ def ride(scene: Scene, spin: Spin = "free", horizon_s: float | None = None, fric
 
     # Events are seen only as sign changes between steps: keep steps well below every time scale
     # (the carriage is linear in time, so the integrator alone would take huge steps over the cam's wiggles).
-    scales = [math.sqrt(2.0 * r_r / m.g_m_s2)] + [2.0 * math.pi / w for w in (w_r, scene.omega_v_rad_s) if w > 0.0]
+    scales = [math.sqrt(2.0 * r_r / m.g_m_s2)] + [2.0 * math.pi / w for w in (w_r, scene.lift_omega_rad_s) if w > 0.0]
     max_step = min(scales) / 32.0
     t, y = 0.0, np.array([scene.theta0_rad, w_r, w_r])
     phases: list[SlipPhase] = []
