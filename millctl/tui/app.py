@@ -18,18 +18,19 @@ from textual.app import SystemCommand
 from textual.binding import Binding, BindingType
 from textual.screen import Screen
 
+from millctl.safety.commands import CONTROLLER_ALLOWS, Operation
 from millctl.tui.commands import Commanding
 from millctl.tui.follow import Following
 
-ENABLED_IN = {
-    "arm": frozenset({"DISABLED"}),
-    "disarm": frozenset({"ARMED"}),
-    "set": frozenset({"ARMED", "RUNNING"}),
-    "stop": frozenset({"ARMED", "RUNNING", "STOPPING"}),
-    "reset": frozenset({"TRIPPED"}),
+ENABLED_IN: dict[str, frozenset[str]] = {
+    **{
+        op.value: frozenset(str(state) for state in CONTROLLER_ALLOWS[op])
+        for op in (Operation.ARM, Operation.DISARM, Operation.SET, Operation.STOP, Operation.RESET)
+    },
     "recipe_run": frozenset({"DISABLED", "ARMED"}),
 }
-"""Controller states in which a footer command applies; elsewhere its key is greyed out (the palette still offers
+"""Controller states in which a footer command applies (the controller's own table,
+:data:`millctl.safety.commands.CONTROLLER_ALLOWS`); elsewhere its key is greyed out (the palette still offers
 it, and the service refuses it with its reason)."""
 RECIPE_ACTIONS = frozenset({"recipe_pause", "recipe_abort"})
 """Footer commands that apply only while a recipe is active."""
