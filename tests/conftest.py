@@ -1,15 +1,50 @@
-"""Fixtures shared by every tier."""
+"""Fixtures shared by every tier, the CI tiers' plugin, and the Hypothesis profiles.
+
+Hypothesis runs the ``ci`` profile unless told otherwise: derandomized (the
+examples are a fixed function of each test, so a run can be repeated) and
+without an example database (nothing carried over from an earlier run). The
+random search is the opt-in ``fuzz`` job (``.ci/fuzz``): ``--hypothesis-profile
+fuzz -m fuzz``, many more examples, fresh randomness, and the failures it finds
+kept in ``.hypothesis/fuzz`` and replayed first the next time.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+from hypothesis.database import DirectoryBasedExampleDatabase
 
 from millctl.config import MillConfig, load_config
+from tests.support.tiers import (
+    pytest_addoption,
+    pytest_collection_modifyitems,
+    pytest_make_collect_report,
+    pytest_runtest_makereport,
+    pytest_terminal_summary,
+)
+
+__all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
+    "pytest_addoption",
+    "pytest_collection_modifyitems",
+    "pytest_make_collect_report",
+    "pytest_runtest_makereport",
+    "pytest_terminal_summary",
+]
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG_FILE = REPO / "config" / "mill.toml"
+
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile(
+    "fuzz",
+    derandomize=False,
+    max_examples=1000,
+    database=DirectoryBasedExampleDatabase(REPO / ".hypothesis" / "fuzz"),
+    print_blob=True,
+)
+settings.load_profile("ci")
 
 
 @pytest.fixture(scope="session")

@@ -44,6 +44,15 @@ class ModelVariant(enum.StrEnum):
     CORRECTED = "corrected"
 
 
+class CamShape(enum.StrEnum):
+    """The vibration cam's shape (docs/model.md#cam-shapes, :mod:`millctl.physics.cam`)."""
+
+    SINGLE = "single"
+    """The paper's circular eccentric: one lift stroke per cam revolution, r_d sin α."""
+    DOUBLE = "double"
+    """The paper's proposed elliptical double-acting cam: two strokes per revolution, r_d sin 2α."""
+
+
 class Material(_Strict):
     """Elastic and mass properties of a rod or vial material."""
 
@@ -96,6 +105,8 @@ class Cam(_Strict):
     """Cam eccentricity r_d, the vibration amplitude (mm)."""
     cam_to_vial_m: Annotated[float, Field(gt=0.0, le=5.0)]
     """Distance l from the cam centre to the vial centre at its highest point (m)."""
+    shape: CamShape = CamShape.SINGLE
+    """Circular single-acting (the paper's mill) or elliptical double-acting (its proposal)."""
 
     @property
     def eccentricity_m(self) -> float:
@@ -103,10 +114,30 @@ class Cam(_Strict):
         return self.eccentricity_mm * 1e-3
 
 
-class Spring(_Strict):
-    """The four springs between the platforms, as one equivalent stiffness."""
+class Powder(_Strict):
+    """The powder charge in the vial (for the specific energy dose, J per g)."""
 
-    stiffness_n_per_m: Annotated[float, Field(ge=0.0, le=1e7)]
+    charge_g: Annotated[float, Field(gt=0.0, le=10_000.0)] = 20.0
+
+
+class Spring(_Strict):
+    """The spring term k of the paper's eqs 4–9: a per-rod effective stiffness, not the platform springs' rate.
+
+    The paper puts a spring force k z on one rod (eq. 4), so k is the share of the four platform
+    springs that acts on one rod. Only values of the order of m ω_v² (tens to hundreds of N/m; Set A's
+    92 N/m gives eq. 9's 200 rpm at ω_v = 800 rpm) make eq. 9 meaningful; a real platform spring rate
+    (10⁴–10⁵ N/m) makes eq. 9's numerator m g − (k − m ω_v²) r_d ≤ 0 up to ω_v = √(k/m − g/r_d),
+    where the law admits no rotation (``millctl config check`` warns; docs/model.md, errata k).
+    """
+
+    stiffness_n_per_m: Annotated[
+        float,
+        Field(
+            ge=0.0,
+            le=1e7,
+            description="k, per-rod effective stiffness of eqs 4–9 (N/m); not the platform springs' rate",
+        ),
+    ]
 
 
 class Model(_Strict):
@@ -126,6 +157,7 @@ class Mill(_Strict):
     vial: Vial
     cam: Cam
     spring: Spring
+    powder: Powder = Powder()
 
     @model_validator(mode="after")
     def _rods_fit(self) -> Mill:
@@ -204,7 +236,9 @@ class Interlock(_Strict):
     min_stale_s: Annotated[float, Field(gt=0.0, le=60.0)] = 1.0
     """A node frame is stale after max(stale_periods × its period, min_stale_s)."""
     e2e_error_limit: Annotated[int, Field(ge=1, le=100)] = 5
-    """Net E2E error score that faults a link."""
+    """Net E2E error score, and sequence score, that fault a link."""
+    e2e_sequence_decay_frames: Annotated[int, Field(ge=1, le=1000)] = 16
+    """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
     startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
     """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
     command_confirm_s: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
@@ -233,6 +267,8 @@ class Timing(_Strict):
     node_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     controller_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     setpoint_period_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.1
+    challenge_lifetime_s: Annotated[float, Field(gt=0.0, le=10.0)] = 0.5
+    """How long a NodeStatus challenge may be echoed by a heartbeat (s): bounds what a replay can feed."""
 
     @model_validator(mode="after")
     def _watchdog_after_heartbeat(self) -> Timing:
@@ -240,6 +276,12 @@ class Timing(_Strict):
             raise ValueError(
                 f"watchdog_timeout_s = {self.watchdog_timeout_s} must be ≥ 2 × heartbeat_period_s "
                 f"= {2.0 * self.heartbeat_period_s}: one lost heartbeat must not trip"
+            )
+        if self.challenge_lifetime_s < self.watchdog_timeout_s:
+            raise ValueError(
+                f"challenge_lifetime_s = {self.challenge_lifetime_s} must be ≥ watchdog_timeout_s "
+                f"= {self.watchdog_timeout_s}: a few lost NodeStatus frames must not starve the watchdog "
+                "(docs/protocol.md, heartbeat freshness)"
             )
         return self
 
@@ -264,16 +306,32 @@ class Bus(_Strict):
 
 
 class Service(_Strict):
-    """Where the controller service listens and writes its records."""
+    """Where the controller service listens and writes its records (empty paths: by convention).
 
-    socket_path: str = "var/millctl.sock"
+    See :mod:`millctl.config.paths` and docs/deployment.md.
+    """
+
+    socket_path: str = ""
     socket_mode: Annotated[int, Field(ge=0o600, le=0o660)] = 0o600
+    """The socket's permission bits: 0600 (the service's user) or 0660 (and its group); never others'."""
     tcp_port: Annotated[int, Field(ge=0, le=65_535)] = 0
     """Loopback TCP port; 0 disables TCP. TCP needs ``token_file``."""
     token_file: str = ""
-    records_dir: str = "var/records"
+    records_dir: str = ""
     rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
     keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+    max_request_bytes: Annotated[int, Field(ge=4_096, le=64 << 20)] = 1 << 20
+    """Largest request body the API reads (bytes); a larger one is refused with 413 unread."""
+
+    @field_validator("socket_mode")
+    @classmethod
+    def _socket_mode_private(cls, value: int) -> int:
+        if value & 0o600 != 0o600 or value & ~0o660:
+            raise ValueError(
+                f"socket_mode = 0o{value:o}: use 0o600 (the service's user) or 0o660 (and its group); the owner "
+                "needs rw, no permission for others, no execute bits (docs/deployment.md#permissions)"
+            )
+        return value
 
 
 class MillConfig(_Strict):
@@ -326,6 +384,7 @@ __all__ = [
     "G_M_S2",
     "Bus",
     "Cam",
+    "CamShape",
     "Drive",
     "Drives",
     "Furnace",
@@ -336,6 +395,7 @@ __all__ = [
     "MillConfig",
     "Model",
     "ModelVariant",
+    "Powder",
     "Rods",
     "Service",
     "Spring",

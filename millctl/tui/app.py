@@ -18,16 +18,17 @@ from textual.app import SystemCommand
 from textual.binding import Binding, BindingType
 from textual.screen import Screen
 
+from millctl.api import ControllerState
 from millctl.safety.commands import CONTROLLER_ALLOWS, Operation
 from millctl.tui.commands import Commanding
 from millctl.tui.follow import Following
 
-ENABLED_IN: dict[str, frozenset[str]] = {
+ENABLED_IN: dict[str, frozenset[ControllerState]] = {
     **{
-        op.value: frozenset(str(state) for state in CONTROLLER_ALLOWS[op])
+        op.value: CONTROLLER_ALLOWS[op]
         for op in (Operation.ARM, Operation.DISARM, Operation.SET, Operation.STOP, Operation.RESET)
     },
-    "recipe_run": frozenset({"DISABLED", "ARMED"}),
+    "recipe_run": frozenset({ControllerState.DISABLED, ControllerState.ARMED}),
 }
 """Controller states in which a footer command applies (the controller's own table,
 :data:`millctl.safety.commands.CONTROLLER_ALLOWS`); elsewhere its key is greyed out (the palette still offers
@@ -61,9 +62,9 @@ class MillApp(Commanding, Following):
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Grey out (None) the keys that do not apply in the present state; E-stop, control and quit always apply."""
         if action in ENABLED_IN:
-            return True if self.online and self.status.get("state") in ENABLED_IN[action] else None
+            return True if self.online and self.state in ENABLED_IN[action] else None
         if action in RECIPE_ACTIONS:
-            return True if self.online and self.recipe.get("active") else None
+            return True if self.online and self.recipe_active else None
         return True
 
     def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:

@@ -175,7 +175,7 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = ("watchdog_timeout_s", "min_stale_s", "setpoint_refresh_s")
+VM_SCALED_KEYS = ("watchdog_timeout_s", "challenge_lifetime_s", "min_stale_s", "setpoint_refresh_s")
 """Timeouts of the config multiplied by the VM's factor there: Python ~10x slower cannot meet the host's."""
 
 
@@ -421,8 +421,8 @@ class Mill:
         return self.transport.timeout(seconds)
 
     def status(self) -> dict[str, Any]:
-        """The controller's status through the API."""
-        return self.client.status()
+        """The controller's status through the API, as plain data."""
+        return self.client.status().model_dump(mode="json")
 
     def wait_state(self, state: str, timeout_s: float = 10.0) -> dict[str, Any]:
         """Wait until the controller reports ``state``; return that status."""

@@ -111,7 +111,7 @@ def start_service(
             pytest.fail(f"{what} exited with {proc.returncode}:\n{service.output()}")
         if service.socket.exists():
             with contextlib.suppress(Exception), service.client() as client:
-                if not wait_for_node or client.status()["state"] == "DISABLED":
+                if not wait_for_node or client.status().state == "DISABLED":
                     return service
         time.sleep(0.1)
     service.stop(signal.SIGKILL)

@@ -5,18 +5,77 @@ from __future__ import annotations
 import pytest
 
 from millctl.clock import ManualClock
-from millctl.controller.states import TRANSITIONS, ControllerState, IllegalTransition, StateMachine
+from millctl.controller.states import ControllerState, IllegalTransition, StateMachine
 
 S = ControllerState
+Path = tuple[ControllerState, ...]
 
 
-def test_every_state_can_trip_except_tripped():
-    for state, targets in TRANSITIONS.items():
-        assert (S.TRIPPED in targets) == (state is not S.TRIPPED)
+# The machine is explored through its behaviour (``go`` succeeds or raises), never by reading its
+# table, and checked against the properties docs/safety.md#state-machine states.
 
 
-def test_tripped_leaves_only_by_reset_to_disabled():
-    assert TRANSITIONS[S.TRIPPED] == frozenset({S.DISABLED})
+def machine_after(path: Path) -> StateMachine:
+    """A fresh machine (DISCONNECTED) moved along ``path``."""
+    sm = StateMachine(ManualClock().now)
+    for target in path:
+        sm.go(target, "test path")
+    return sm
+
+
+def moves_after(path: Path) -> set[ControllerState]:
+    """The states the machine accepts a move to after ``path``."""
+    accepted: set[ControllerState] = set()
+    for target in S:
+        sm = machine_after(path)
+        if target is sm.state:
+            continue
+        try:
+            sm.go(target, "probe")
+        except IllegalTransition:
+            continue
+        accepted.add(target)
+    return accepted
+
+
+def shortest_paths(avoid: frozenset[ControllerState] = frozenset()) -> dict[ControllerState, Path]:
+    """Every state reachable from DISCONNECTED (not through ``avoid``), with a shortest path to it."""
+    paths: dict[ControllerState, Path] = {S.DISCONNECTED: ()}
+    frontier: list[Path] = [()]
+    while frontier:  # each state enters the frontier once: at most len(S) rounds
+        path = frontier.pop(0)
+        for target in sorted(moves_after(path) - avoid - set(paths)):
+            paths[target] = (*path, target)
+            frontier.append(paths[target])
+    return paths
+
+
+def test_every_state_is_reachable_from_disconnected():
+    assert set(shortest_paths()) == set(S)
+
+
+def test_a_trip_is_possible_from_every_state_but_tripped():
+    for state, path in shortest_paths().items():
+        assert (S.TRIPPED in moves_after(path)) == (state is not S.TRIPPED), state
+
+
+def test_tripped_latches_only_reset_to_disabled_leaves_it():
+    assert moves_after(shortest_paths()[S.TRIPPED]) == {S.DISABLED}
+
+
+def test_nothing_moves_before_arm():
+    """Without passing ARMED, neither RUNNING nor STOPPING can be reached (safe by default)."""
+    assert set(shortest_paths(avoid=frozenset({S.ARMED}))) == {S.DISCONNECTED, S.DISABLED, S.TRIPPED}
+
+
+def test_the_node_must_be_seen_first():
+    """From DISCONNECTED only "node seen" (DISABLED) or a trip."""
+    assert moves_after(()) == {S.DISABLED, S.TRIPPED}
+
+
+def test_running_stops_only_through_stopping_or_a_trip():
+    """A running mill is never disarmed in one step: it ramps down (STOPPING) or trips."""
+    assert moves_after(shortest_paths()[S.RUNNING]) == {S.STOPPING, S.TRIPPED}
 
 
 def test_illegal_move_names_the_allowed_ones():

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from crccheck.crc import Crc8SaeJ1850
+from hypothesis import given
+from hypothesis import strategies as st
 
 from millctl.config import MillConfig
 from millctl.protocol import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
@@ -25,9 +28,23 @@ def test_crc8_sae_j1850_known_answers(hex_data: str, expected: int) -> None:
     assert crc8_sae_j1850(bytes.fromhex(hex_data)) == expected
 
 
-def test_e2e_crc_covers_data_id_low_then_high_then_payload() -> None:
+@given(st.binary(max_size=64))
+def test_crc8_sae_j1850_agrees_with_an_independent_implementation(data: bytes) -> None:
+    """crccheck's table-free CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xorout 0xFF) is the oracle."""
+    assert crc8_sae_j1850(data) == Crc8SaeJ1850.calc(data)
+
+
+@given(st.integers(0, 0xFFFF), st.binary(min_size=1, max_size=7))
+def test_e2e_crc_covers_data_id_low_then_high_then_payload(data_id: int, payload: bytes) -> None:
+    """AUTOSAR E2E: the CRC runs over the data ID's low byte, its high byte, then the payload (oracle: crccheck)."""
+    low, high = data_id.to_bytes(2, "little")
+    assert e2e_crc(data_id, payload) == Crc8SaeJ1850.calc(bytes((low, high)) + payload)
+
+
+def test_e2e_crc_known_answer_and_sensitivity() -> None:
     payload = bytes.fromhex("05A00FE02E1C25")
-    assert e2e_crc(0x4D30, payload) == crc8_sae_j1850(bytes((0x30, 0x4D)) + payload)
+    # crccheck: Crc8SaeJ1850.calc(bytes.fromhex("304D05A00FE02E1C25")) == 0xC3
+    assert e2e_crc(0x4D30, payload) == 0xC3
     assert e2e_crc(0x4D30, payload) != e2e_crc(0x4D20, payload)
     assert e2e_crc(0x304D, payload) != e2e_crc(0x4D30, payload)
     with pytest.raises(ValueError, match="data ID"):
@@ -111,3 +128,55 @@ def test_receiver_rejects_nonsense_limits() -> None:
         E2EReceiver(error_limit=0)
     with pytest.raises(ValueError):
         E2EReceiver(error_limit=5, max_delta=15)
+
+
+def test_a_second_sender_answering_each_frame_with_counter_plus_one_faults_the_link() -> None:
+    """SAFETY 17: genuine c, spoof c + 1 (OK), genuine c + 1 (REPEATED) … used to keep the net score level."""
+    receiver = E2EReceiver(error_limit=5)
+    genuine = AliveCounter()
+    statuses = []
+    for _ in range(8):
+        counter = genuine.next()
+        statuses += [receiver.classify(counter, crc_ok=True), receiver.classify((counter + 1) % 16, crc_ok=True)]
+    assert receiver.score <= 1  # the net score alone stays level: the attack it could not see
+    assert receiver.faulted and receiver.sequence_score >= 5
+    reason = receiver.fault_reason()
+    assert reason is not None and "second sender" in reason and "≥ limit 5" in reason
+    assert statuses.count(E2EStatus.OK) >= 7  # every spoof was fresh: exactly why OK must not pay for REPEATED
+
+
+def test_interleaved_senders_on_one_identifier_fault_the_link() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    genuine, other = AliveCounter(), AliveCounter(start=8)
+    for _ in range(10):
+        receiver.classify(genuine.next(), crc_ok=True)
+        receiver.classify(other.next(), crc_ok=True)
+    assert receiver.faulted and receiver.sequence_score >= 5
+
+
+def test_a_second_sender_slower_than_the_decay_is_forgiven_and_a_faster_one_is_not() -> None:
+    decay = 16
+    for every, faults in ((decay + 2, False), (decay - 4, True)):
+        receiver = E2EReceiver(error_limit=5, sequence_decay_frames=decay)
+        counter = AliveCounter()
+        for i in range(40 * every):
+            value = counter.next()
+            receiver.classify(value, crc_ok=True)
+            if i % every == every - 1:
+                receiver.classify(value, crc_ok=True)  # one duplicate now and then
+        assert receiver.faulted is faults, (every, receiver.sequence_score)
+
+
+def test_sequence_score_decays_one_per_decay_frames_fresh_frames_and_clears_on_reset() -> None:
+    receiver = E2EReceiver(error_limit=3, sequence_decay_frames=4)
+    classify_all(receiver, [0, 0, 0, 0])  # three repeats
+    assert receiver.sequence_score == 3 and receiver.faulted
+    classify_all(receiver, [1, 2, 3])
+    assert receiver.sequence_score == 3
+    classify_all(receiver, [4])
+    assert receiver.sequence_score == 2 and not receiver.faulted
+    receiver.classify(4, crc_ok=True)
+    receiver.clear_scores()
+    assert (receiver.score, receiver.sequence_score, receiver.last_counter) == (0, 0, 4)
+    with pytest.raises(ValueError, match="sequence_decay_frames 0"):
+        E2EReceiver(error_limit=5, sequence_decay_frames=0)

@@ -55,13 +55,28 @@ def lease_id(runtime: ServiceRuntime) -> str:
 schema = schemathesis.pytest.from_fixture("api_schema").exclude(path="/v1/stream")
 
 
-@schema.parametrize()
-@settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
-def test_every_response_is_documented_and_none_is_a_server_error(case: schemathesis.Case, lease_id: str) -> None:
+def check_case(case: schemathesis.Case, lease_id: str) -> None:
     # A valid lease, so that commands get past the lease check to the controller and its interlock
     # (but never to release: the fuzzer keeps control for the whole run).
     headers = {} if case.path == "/v1/control/release" else {"X-Millctl-Lease": lease_id}
     case.call_and_validate(checks=CHECKS, headers=headers)
+
+
+@schema.parametrize()
+@settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
+def test_every_response_is_documented_and_none_is_a_server_error(case: schemathesis.Case, lease_id: str) -> None:
+    """CI: the same few examples every run (the ``ci`` profile derandomizes; tests/conftest.py)."""
+    check_case(case, lease_id)
+
+
+@pytest.mark.fuzz
+@schema.parametrize()
+@settings(deadline=None, suppress_health_check=list(HealthCheck))
+def test_random_search_every_response_is_documented_and_none_is_a_server_error(
+    case: schemathesis.Case, lease_id: str
+) -> None:
+    """The random search, in the opt-in fuzz job (``.ci/fuzz``): as many examples as the profile gives."""
+    check_case(case, lease_id)
 
 
 def test_every_route_is_versioned_and_documents_its_errors(tmp_path: Path) -> None:

@@ -1,0 +1,137 @@
+"""A pytest plugin for CI tiers: a tier that skips what it is meant to run fails, and says so.
+
+Loaded by ``tests/conftest.py``. Without options it changes nothing (a
+developer's ``pytest tests/hil`` skips udp_multicast outside a network
+namespace, as before). CI (``.ci/test``, ``tests/vm/guest``) names each tier:
+
+``--tier NAME``
+    The tier's name. A test that skips, at collection, setup or call, is
+    reported as **failed** with the tier's name and the skip's reason, unless
+    the reason matches a ``--may-skip`` pattern. xfail is not a skip.
+``--may-skip REGEX``
+    A skip reason this tier accepts (repeatable; ``re.search``). For skips that
+    are structural, such as a case that needs two processes on python-can's
+    in-process ``virtual`` bus; each accepted skip is still counted and listed.
+``--transports a,b``
+    Keep only the cases of these transports (the ``transport`` parameter of the
+    hil fixtures); the others are deselected, not skipped, because another tier
+    runs them (socketcan runs in the VM).
+
+At the end the tier prints its closing line,
+``TIER unit: 812 passed, 0 failed, 0 errors, 0 skipped (3 deselected)``, and
+appends it to the file named by ``$MILLCTL_TIER_SUMMARY`` (if set) for
+``.ci/test`` and ``.ci/run`` to print together.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Generator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from _pytest.reports import CollectReport, TestReport
+
+SUMMARY_ENV = "MILLCTL_TIER_SUMMARY"
+COUNTED = ("passed", "failed", "error", "skipped", "deselected", "xfailed", "xpassed")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("millctl tiers", "CI tiers: skipping what a tier must run is a failure")
+    group.addoption("--tier", default=None, help="name of the CI tier; a skip in it fails unless --may-skip allows it")
+    group.addoption(
+        "--may-skip", action="append", default=[], metavar="REGEX", help="a skip reason this tier accepts (repeatable)"
+    )
+    group.addoption(
+        "--transports",
+        default=None,
+        metavar="NAMES",
+        help="comma-separated transports whose hil cases run here; the others are deselected",
+    )
+
+
+def _tier(config: pytest.Config) -> str | None:
+    name: str | None = config.getoption("--tier")
+    return name
+
+
+def _accepted(config: pytest.Config, reason: str) -> bool:
+    patterns: list[str] = config.getoption("--may-skip")
+    return any(re.search(pattern, reason) for pattern in patterns)
+
+
+def skip_reason(report: TestReport | CollectReport) -> str:
+    """The reason a skipped report gives (pytest stores it as ``(path, lineno, "Skipped: reason")``)."""
+    longrepr = report.longrepr
+    if isinstance(longrepr, tuple) and len(longrepr) == 3:
+        return str(longrepr[2]).removeprefix("Skipped: ")
+    return str(longrepr)
+
+
+def _fail_skip(report: TestReport | CollectReport, tier: str) -> None:
+    reason = skip_reason(report)
+    report.outcome = "failed"
+    report.longrepr = (
+        f"tier {tier!r} must run this case, but it skipped: {reason}\n"
+        "(a skip in a CI tier is a failure, so a tier cannot pass while testing less than it claims; "
+        "tests/support/tiers.py)"
+    )
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, Any, None]:
+    outcome = yield
+    report: TestReport = outcome.get_result()
+    tier = _tier(item.config)
+    if tier and report.skipped and not hasattr(report, "wasxfail") and not _accepted(item.config, skip_reason(report)):
+        _fail_skip(report, tier)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector: pytest.Collector) -> Generator[None, Any, None]:
+    outcome = yield
+    report: CollectReport = outcome.get_result()
+    tier = _tier(collector.config)
+    if tier and report.skipped and not _accepted(collector.config, skip_reason(report)):
+        _fail_skip(report, tier)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    wanted: str | None = config.getoption("--transports")
+    if wanted is None:
+        return
+    keep_names = {name.strip() for name in wanted.split(",") if name.strip()}
+    kept: list[pytest.Item] = []
+    dropped: list[pytest.Item] = []
+    for item in items:
+        callspec = getattr(item, "callspec", None)
+        transport = callspec.params.get("transport") if callspec is not None else None
+        (dropped if transport is not None and transport not in keep_names else kept).append(item)
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = kept
+
+
+def closing_line(tier: str, stats: dict[str, list[Any]]) -> str:
+    """``TIER name: N passed, N failed, N errors, N skipped`` (+ deselected/xfail when there are any)."""
+    n = {key: len(stats.get(key, [])) for key in COUNTED}
+    line = f"{tier}: {n['passed']} passed, {n['failed']} failed, {n['error']} errors, {n['skipped']} skipped"
+    extras = [f"{n[key]} {key}" for key in ("deselected", "xfailed", "xpassed") if n[key]]
+    return line + (f" ({', '.join(extras)})" if extras else "")
+
+
+def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
+    tier = _tier(config)
+    if tier is None:
+        return
+    stats: dict[str, list[Any]] = terminalreporter.stats
+    line = closing_line(tier, stats)
+    accepted = sorted({skip_reason(r) for r in stats.get("skipped", [])})
+    terminalreporter.write_sep("=", f"TIER {line}")
+    for reason in accepted:
+        terminalreporter.write_line(f"  accepted skip ({tier}): {reason}")
+    if path := os.environ.get(SUMMARY_ENV):
+        with Path(path).open("a", encoding="utf-8") as out:
+            out.write(f"{line}{'' if exitstatus == 0 else f' [pytest exit {int(exitstatus)}]'}\n")
