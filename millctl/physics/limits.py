@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from millctl.config.models import G_M_S2, CamShape, LimitLaw, MillConfig
-from millctl.physics.cam import lift_speed_array, strokes
+from millctl.physics.cam import STROKES_PER_REVOLUTION, lift_speed_array, strokes
 
 FloatArray = NDArray[np.float64]
 
@@ -151,7 +151,8 @@ def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> f
     The same formulas, in the same order of operations, as the vectorised laws above,
     so that every verdict is bitwise the same (``tests/unit/test_limits.py``).
     """
-    w2 = omega_v_rad_s * omega_v_rad_s
+    w = STROKES_PER_REVOLUTION[p.cam] * omega_v_rad_s  # the lift speed h·ω_v, as lift_speed_array forms it
+    w2 = w * w
     m, k, r_d, g = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.g_m_s2
     if law is LimitLaw.PAPER_EQ9:
         numerator = m * (g + r_d * w2) - k * r_d
