@@ -67,7 +67,7 @@ class Node:
         fault_injection: bool = False,
         seed: int = 0,
         codec: Codec | None = None,
-        physics_worker: PhysicsWorker = "thread",
+        physics_worker: PhysicsWorker = "inline",
     ) -> None:
         self.config = config
         self.bus = bus

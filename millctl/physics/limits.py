@@ -25,13 +25,14 @@ printed order mg − (k − mω_v²) r_d loses digits near its zero.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from millctl.config.models import G_M_S2, CamShape, LimitLaw, MillConfig
-from millctl.physics.cam import lift_speed_array, strokes
+from millctl.physics.cam import STROKES_PER_REVOLUTION, lift_speed_array, strokes
 
 FloatArray = NDArray[np.float64]
 
@@ -144,6 +145,28 @@ def omega_r_max(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> Floa
     return LAWS[law](p, omega_v_rad_s)
 
 
+def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> float:
+    """ω_r,max (rad/s) of one ω_v in plain ``math``: the interlock's scalar path (well under a microsecond).
+
+    The same formulas, in the same order of operations, as the vectorised laws above,
+    so that every verdict is bitwise the same (``tests/unit/test_limits.py``).
+    """
+    w = STROKES_PER_REVOLUTION[p.cam] * omega_v_rad_s  # the lift speed h·ω_v, as lift_speed_array forms it
+    w2 = w * w
+    m, k, r_d, g = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.g_m_s2
+    if law is LimitLaw.PAPER_EQ9:
+        numerator = m * (g + r_d * w2) - k * r_d
+        return math.sqrt((numerator if numerator > 0.0 else 0.0) / (2.0 * m * p.r0_m))
+    if law is LimitLaw.PAPER_EVERY_CYCLE:
+        numerator = m * (g + r_d * w2) - k * r_d if k >= m * w2 else (m * g + k * r_d) - m * r_d * w2
+        denominator = 2.0 * m * p.r0_m
+    else:
+        gamma = r_d * w2 / g
+        numerator = g * (1.0 - gamma) if law is LimitLaw.CORRECTED_EVERY_PHASE else g * (1.0 + gamma)
+        denominator = p.r0_m
+    return math.sqrt((numerator if numerator > 0.0 else 0.0) / denominator)
+
+
 def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> NDArray[np.bool_]:
     """True where the law guarantees detachment in every cycle of its own model.
 
@@ -236,6 +259,7 @@ __all__ = [
     "omega_r_max_eq8a",
     "omega_r_max_paper_eq9",
     "omega_r_max_paper_every_cycle",
+    "omega_r_max_scalar",
     "regime_flags",
     "sin_alpha_bound_consistent",
     "sin_alpha_bound_printed_eq8b",
