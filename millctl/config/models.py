@@ -241,6 +241,22 @@ class Interlock(_Strict):
     """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
     startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
     """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
+    command_confirm_s: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
+    """A command the node has not confirmed by its reported state within this time escalates (s):
+    STOP → E-stop, any other → trip naming the lost command. Also the lag allowed before measured
+    speeds must follow what was commanded (plus the drives' settle time)."""
+    command_repeat_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.2
+    """An unconfirmed command is sent again, with a fresh alive counter, this often (s); an E-stop
+    is repeated at this period until the node reports it."""
+
+    @model_validator(mode="after")
+    def _repeat_within_confirm(self) -> Interlock:
+        if not self.command_repeat_s < self.command_confirm_s:
+            raise ValueError(
+                f"command_repeat_s = {self.command_repeat_s} must be < command_confirm_s = {self.command_confirm_s}: "
+                "an unconfirmed command must be repeated before it escalates"
+            )
+        return self
 
 
 class Timing(_Strict):
@@ -304,6 +320,8 @@ class Service(_Strict):
     records_dir: str = ""
     rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
     keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+    run_sample_s: Annotated[float, Field(ge=0.05, le=3_600.0)] = 1.0
+    """How often a recipe run records a sample of the mill (s; ``millctl report`` draws them)."""
     max_request_bytes: Annotated[int, Field(ge=4_096, le=64 << 20)] = 1 << 20
     """Largest request body the API reads (bytes); a larger one is refused with 413 unread."""
 
