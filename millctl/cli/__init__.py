@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "millctl.cli.service_cmd",
     "millctl.cli.client_cmd",
     "millctl.cli.tui_cmd",
+    "millctl.cli.report_cmd",
     "millctl.cli.bench_cmd",
     "millctl.cli.completion_cmd",
 )

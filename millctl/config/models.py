@@ -320,6 +320,8 @@ class Service(_Strict):
     records_dir: str = ""
     rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
     keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+    run_sample_s: Annotated[float, Field(ge=0.05, le=3_600.0)] = 1.0
+    """How often a recipe run records a sample of the mill (s; ``millctl report`` draws them)."""
     max_request_bytes: Annotated[int, Field(ge=4_096, le=64 << 20)] = 1 << 20
     """Largest request body the API reads (bytes); a larger one is refused with 413 unread."""
 

@@ -29,6 +29,7 @@ from millctl.errors import InterlockError
 from millctl.physics.dose import whole_mill_rate_hz
 from millctl.protocol import PhysicsTelemetry
 from millctl.recipes.plan import RecipePlan, StepPlan
+from millctl.recipes.samples import DEFAULT_SAMPLE_S, RunSampler
 from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
 from millctl.records import RecordQueue, RecordWriter
 
@@ -63,6 +64,7 @@ class RecipeRunner:
         config_sha256: str,
         source: str = "recipe",
         records: RecordQueue | None = None,
+        sample_s: float = DEFAULT_SAMPLE_S,
     ) -> None:
         if not plan.ok:
             raise InterlockError(f"recipe {loaded.source} does not pass its pre-flight: {plan.violations[0]}")
@@ -88,6 +90,7 @@ class RecipeRunner:
         self._dose_j_g = 0.0
         """Specific energy dose of the current step so far (J/g), from the node's physics telemetry."""
         self._dose_clock_s = clock.now()
+        self.sampler = RunSampler(sample_s, self._dose_rate_j_g_s, clock.now())
         self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1, queue=records)
         self._write(
             "start",
@@ -100,6 +103,9 @@ class RecipeRunner:
             margin=plan.margin,
             steps=len(plan.steps),
             planned_s=plan.total_s,
+            sample_s=sample_s,
+            powder_charge_g=plan.powder_charge_g,
+            furnace_band_c=loaded.recipe.defaults.tolerances.furnace_c,
         )
 
     # ------------------------------------------------------------------ record
@@ -189,6 +195,9 @@ class RecipeRunner:
         if self.finished:
             return
         c = self.controller
+        due = self.sampler.due(c, self.clock.now())
+        if due is not None:
+            self._write("sample", step=min(self.index + 1, len(self.steps)), run_state=str(self.state), **due)
         if c.state is S.TRIPPED and self.state is not RunState.STOPPING:
             self._write("trip", cause=c.trip_cause, step=self.index + 1)
             self._enter(RunState.FAILED, f"interlock trip: {c.trip_cause}")

@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import can
 import pytest
 
 from firmware_sim.faults import BABBLE_ID
@@ -56,6 +57,7 @@ pytestmark = pytest.mark.hil
 
 LOW_RPM = (60.0, 300.0)
 """ω_r, ω_v (rpm): the mill turning, short ramps."""
+Capture = pytest.CaptureFixture[str]
 
 
 @pytest.fixture
@@ -173,38 +175,37 @@ def test_malformed_frames_and_datagrams_kill_no_loop(
 # --- E2E: bad CRC, counter jumps, a second sender (item 3) ----------------------------------------------------------
 
 
-def node_fault_reaction(m: Mill, probe: Probe, t_first: float, fault: FaultCode) -> float:
-    seen = wait_status(m, probe, is_status(NodeState.FAULT, fault), t_first, f"NodeStatus FAULT/{fault.name}")
-    return seen.t - t_first
-
-
-def test_bad_crc_frames_fault_the_nodes_link(
-    mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
+def assert_link_faults(
+    mill: tuple[Mill, Probe, Adversary], frames: list[can.Message], name: str, transport: Transport, capsys: Capture
 ) -> None:
+    """Send ``frames`` back to back: the node's link faults (NodeStatus FAULT/E2E_LINK) in time, the mill stops."""
     m, probe, adversary = mill
-    bad = adversary.bad_crc(Setpoints(150.0, 300.0, 25.0, False))
-    limit = m.config.interlock.e2e_error_limit
-    t_first = adversary.send(*[bad] * (limit + 1))
-    measured_s = node_fault_reaction(m, probe, t_first, FaultCode.E2E_LINK)
-    bound_s = m.bounds.node_reports_s
-    report_timing(capsys, "e2e_link_fault_on_bad_crc", transport.name, measured_s, bound_s)
+    t_first = adversary.send(*frames)
+    seen = wait_status(m, probe, is_status(NodeState.FAULT, FaultCode.E2E_LINK), t_first, "NodeStatus FAULT/E2E_LINK")
+    measured_s, bound_s = seen.t - t_first, m.bounds.node_reports_s
+    report_timing(capsys, name, transport.name, measured_s, bound_s)
     assert measured_s <= bound_s
     assert "E2E_LINK" in m.wait_state("TRIPPED", 2.0)["trip_cause"]
     assert_stops_inside(m, probe, t_first)
 
 
-def test_counter_jumps_fault_the_nodes_link(
-    mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
+def test_bad_crc_frames_fault_the_nodes_link(
+    mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: Capture
 ) -> None:
-    m, probe, adversary = mill
+    m, _, adversary = mill
+    bad = adversary.bad_crc(Setpoints(150.0, 300.0, 25.0, False))
+    frames = [bad] * (m.config.interlock.e2e_error_limit + 1)
+    assert_link_faults(mill, frames, "e2e_link_fault_on_bad_crc", transport, capsys)
+
+
+def test_counter_jumps_fault_the_nodes_link(
+    mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: Capture
+) -> None:
+    m, _, adversary = mill
     limit = m.config.interlock.e2e_error_limit
+    # good CRCs, every counter 5 past the last: out of sequence
     jumps = [adversary.forged(Heartbeat(ControllerState.RUNNING), (5 * k) % 16) for k in range(1, limit + 2)]
-    t_first = adversary.send(*jumps)  # good CRCs, every counter 5 past the last: out of sequence
-    measured_s = node_fault_reaction(m, probe, t_first, FaultCode.E2E_LINK)
-    bound_s = m.bounds.node_reports_s
-    report_timing(capsys, "e2e_link_fault_on_counter_jumps", transport.name, measured_s, bound_s)
-    assert measured_s <= bound_s
-    assert_stops_inside(m, probe, t_first)
+    assert_link_faults(mill, jumps, "e2e_link_fault_on_counter_jumps", transport, capsys)
 
 
 ALL_WELL: dict[type[MillMessage], MillMessage] = {
