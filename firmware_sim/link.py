@@ -2,15 +2,27 @@
 
 Every E2E-protected frame from the controller (Command, Heartbeat,
 Setpoints) goes through one :class:`~millctl.protocol.E2EReceiver` per
-message (SAFETY.md item 3). Only a heartbeat whose status is fresh (OK or
-OK_SOME_LOST) feeds the watchdog: a repeated, out-of-sequence or bad-CRC
-heartbeat never does (item 2). A net error score at the configured limit on
-any of them faults the link.
+message (SAFETY.md item 3). Either E2E score at the configured limit on any
+of them faults the link.
+
+Only a *fresh* heartbeat feeds the watchdog (items 2 and 16): its E2E status
+is fresh (OK or OK_SOME_LOST: never a repeated, out-of-sequence or bad-CRC
+one) **and** its ``challenge_echo`` is a challenge this node issued within
+``timing.challenge_lifetime_s`` and no older than the challenge the last
+fresh heartbeat echoed. Every NodeStatus carries a new random 16-bit
+challenge (:meth:`LinkMonitor.issue_challenge`); the controller echoes the
+latest one it received. A 4-bit counter cannot tell a replay, the challenge
+can: a recorded heartbeat echoes a challenge that has since been superseded
+or has expired, so a recorded sequence replayed after the controller died
+feeds nothing, and the watchdog stops the mill (docs/protocol.md, "Heartbeat
+freshness").
 """
 
 from __future__ import annotations
 
 import logging
+import secrets
+from collections import deque
 
 from millctl.config.models import MillConfig
 from millctl.protocol import Command, Decoded, E2EReceiver, E2EStatus, Heartbeat, MillMessage, Setpoints
@@ -25,14 +37,50 @@ class LinkMonitor:
     """E2E receivers for the controller's frames and the heartbeat watchdog (times in s)."""
 
     def __init__(self, config: MillConfig) -> None:
-        limit = config.interlock.e2e_error_limit
+        interlock = config.interlock
         self.timeout_s = config.timing.watchdog_timeout_s
         self.receivers: dict[type[MillMessage], E2EReceiver] = {
-            kind: E2EReceiver(error_limit=limit, name=kind.__name__) for kind in GUARDED
+            kind: E2EReceiver(
+                error_limit=interlock.e2e_error_limit,
+                name=kind.__name__,
+                sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+            )
+            for kind in GUARDED
         }
         self.last_heartbeat_s: float | None = None
         """When the last fresh heartbeat arrived (s, node clock); None before the first."""
         self.fresh_heartbeats = 0
+        self.expired_echoes = 0
+        """Heartbeats with a fresh counter whose echo was not a live challenge newer than the last one accepted."""
+        self.lifetime_s = config.timing.challenge_lifetime_s
+        self._challenges: deque[tuple[int, int, float]] = deque()
+        """Live challenges, oldest first: (serial number, value, issued at s)."""
+        self._issued = 0
+        self._accepted = -1
+        """Serial number of the challenge the last fresh heartbeat echoed (-1 before the first)."""
+
+    def issue_challenge(self, now_s: float) -> int:
+        """A new random challenge for the NodeStatus about to be sent; live for ``challenge_lifetime_s``."""
+        value = secrets.randbits(16)
+        self._challenges.append((self._issued, value, now_s))
+        self._issued += 1
+        while now_s - self._challenges[0][2] > self.lifetime_s:
+            self._challenges.popleft()
+        return value
+
+    def echo_fresh(self, echo: int, now_s: float) -> bool:
+        """True when ``echo`` is a live challenge no older than the one the last fresh heartbeat echoed.
+
+        Accepting one takes every older challenge out of play, so a recorded
+        heartbeat can only ever echo a challenge already superseded.
+        """
+        for serial, value, issued_s in reversed(self._challenges):
+            if serial < self._accepted or now_s - issued_s > self.lifetime_s:
+                return False
+            if value == echo:
+                self._accepted = serial
+                return True
+        return False
 
     def check(self, decoded: Decoded, now_s: float) -> E2EStatus:
         """Classify one decoded controller frame; a fresh heartbeat feeds the watchdog."""
@@ -40,19 +88,24 @@ class LinkMonitor:
         status = receiver.check(decoded)
         if not status.fresh:
             log.debug(
-                "%s frame %s (counter %s, E2E score %d)",
+                "%s frame %s (counter %s, E2E score %d, sequence score %d)",
                 decoded.kind.__name__,
                 status.value,
                 decoded.counter,
                 receiver.score,
+                receiver.sequence_score,
             )
-        elif decoded.kind is Heartbeat:
-            self.last_heartbeat_s = now_s
-            self.fresh_heartbeats += 1
+        elif isinstance(decoded.message, Heartbeat):
+            if self.echo_fresh(decoded.message.challenge_echo, now_s):
+                self.last_heartbeat_s = now_s
+                self.fresh_heartbeats += 1
+            else:
+                self.expired_echoes += 1
+                log.debug("heartbeat echoes challenge %d, not a live one: not fresh", decoded.message.challenge_echo)
         return status
 
     def heartbeat_live(self, now_s: float) -> bool:
-        """True when a fresh heartbeat arrived within the watchdog timeout."""
+        """True when a fresh heartbeat (counter and challenge) arrived within the watchdog timeout."""
         return self.last_heartbeat_s is not None and now_s - self.last_heartbeat_s <= self.timeout_s
 
     @property
@@ -63,7 +116,7 @@ class LinkMonitor:
     def reset_scores(self) -> None:
         """Clear the error scores (after an accepted RESET); counters resynchronise on the next frame."""
         for receiver in self.receivers.values():
-            receiver.score = 0
+            receiver.clear_scores()
 
 
 __all__ = ["GUARDED", "LinkMonitor"]

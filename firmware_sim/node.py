@@ -401,7 +401,14 @@ class Node:
 
     def _frame(self, kind: type[MillMessage]) -> MillMessage:
         if kind is NodeStatus:
-            return NodeStatus(self._state, self._fault_bits, self._first_fault, self._refused % 256, self._last_refusal)
+            return NodeStatus(
+                self._state,
+                self._fault_bits,
+                self._first_fault,
+                self._refused % 256,
+                self._last_refusal,
+                self.link.issue_challenge(self.clock.now()),
+            )
         if kind is DriveTelemetry:
             torque_r, torque_v = self.drives.torques_nm()
             return self.codec.saturated(DriveTelemetry(*self._measured, torque_r, torque_v))

@@ -136,6 +136,7 @@ def _frame_of(codec: Codec, summary: RevolutionSummary) -> PhysicsTelemetry:
             impact_rate_hz=finite(summary.impact_rate_hz),
             impact_energy_mj=finite(summary.mean_impact_energy_j * 1e3),  # J → mJ
             shear_kpa=finite(summary.mean_shear_pa * 1e-3),  # Pa → kPa
+            no_slip_violated=summary.no_slip_violated,
         )
     )
 

@@ -8,147 +8,275 @@ Shared by the CLI, the TUI, the recipe runner's front end and users' scripts::
         mill.arm()
         mill.set_speeds(180.0, 800.0)
 
-Errors come back as millctl exceptions with their exit codes: a refusal by
-the interlock is an :class:`InterlockRefusal` (exit 2) carrying the reason and
-every refusal; a wrong state or control held by someone else is a
-:class:`ServiceRefused` / :class:`ControlHeld` (exit 2); an invalid request a
-:class:`RequestInvalid` (exit 1); no service a :class:`ServiceUnavailable` (exit 3).
+Both clients are built from one table of operations (:class:`Operations`):
+each row says how a call becomes a request and which :mod:`millctl.api` model
+the answer is. The two clients differ only in their transport: :class:`Client`
+sends with ``httpx.Client``, :class:`AsyncClient` awaits ``httpx.AsyncClient``.
+
+Errors come back as millctl exceptions with their exit codes (see
+:mod:`millctl.client_errors`): a refusal by the interlock is an
+:class:`InterlockRefusal` (exit 2) carrying the reason and every refusal; a
+wrong state or control held by someone else is a :class:`ServiceRefused` /
+:class:`ControlHeld` (exit 2); an invalid request a :class:`RequestInvalid`
+(exit 1); no service a :class:`ServiceUnavailable` (exit 3).
+
+The live stream (:meth:`Client.stream`) is server-sent events; the client
+remembers the id of the last event it saw and sends it as ``Last-Event-ID``
+when it streams again, so a client that reconnects misses no event.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
+import functools
 import os
 import socket
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Generic, ParamSpec, TypeVar, overload
 
 import httpx
+from httpx_sse import ServerSentEvent, aconnect_sse, connect_sse
+from pydantic import BaseModel
 
+from millctl.api import (
+    CheckOut,
+    CommandOut,
+    ControlOut,
+    EnvelopeOut,
+    EventOut,
+    EventsOut,
+    LeaseOut,
+    RecipeOut,
+    ServiceOut,
+    StatusOut,
+    StreamKind,
+)
+from millctl.client_errors import (
+    AccessDenied,
+    ControlHeld,
+    InterlockRefusal,
+    NodeUnavailable,
+    RequestInvalid,
+    ServiceRefused,
+    ServiceUnavailable,
+    raise_for_error,
+)
 from millctl.errors import BusError, InterlockError, InvalidInputError
 
 CLIENT_HEADER = "X-Millctl-Client"
 LEASE_HEADER = "X-Millctl-Lease"
+LAST_EVENT_ID_HEADER = "Last-Event-ID"
 DEFAULT_TIMEOUT_S = 10.0
 
-
-class ServiceUnavailable(BusError):
-    """No service answers on the socket (or URL): start it with ``millctl serve``."""
-
-
-class AccessDenied(BusError, PermissionError):
-    """The socket's permissions, or the bearer token, keep this client out."""
-
-
-class NodeUnavailable(BusError):
-    """The service runs, but the node is unreachable or the control loop is down (HTTP 503)."""
-
-
-class ServiceRefused(InterlockError):
-    """The service refused a command (wrong state, or a running recipe); ``code`` is the API's error code."""
-
-    def __init__(self, message: str, code: str = "", body: dict[str, Any] | None = None) -> None:
-        self.code = code
-        self.body = body or {}
-        self.reason = str(self.body.get("message", message))
-        super().__init__(message)
-
-
-class InterlockRefusal(ServiceRefused):
-    """The interlock refused a command; ``refusals`` lists quantity, value, limit, unit and reason."""
-
-    @property
-    def refusals(self) -> list[dict[str, Any]]:
-        """Each out-of-envelope quantity with its value and limit."""
-        return list(self.body.get("refusals", []))
-
-
-class ControlHeld(ServiceRefused):
-    """Another client holds control (``holder``), or this client has no valid lease (HTTP 423)."""
-
-    @property
-    def holder(self) -> str | None:
-        """Who holds control."""
-        holder = self.body.get("holder")
-        return str(holder) if holder else None
-
-
-class RequestInvalid(InvalidInputError):
-    """The service rejected the request as invalid (HTTP 422); ``field`` names the field."""
-
-    def __init__(self, message: str, field: str | None = None) -> None:
-        self.field = field
-        super().__init__(message)
+P = ParamSpec("P")
+T = TypeVar("T", bound=BaseModel)
+StreamItem = StatusOut | EventOut
+"""What the live stream yields: a status snapshot, or an event."""
 
 
 def default_socket_path(config: str | os.PathLike[str] | None = None) -> str:
-    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged)."""
+    """The service socket of the configuration chosen by precedence (``--config`` > env > ./config > packaged).
+
+    Resolved as the service resolves it (:mod:`millctl.config.paths`): by
+    platform convention unless the config names one, never from the working
+    folder, so a client in any folder finds the service of the same config.
+    """
     from millctl.config import load_config
+    from millctl.config.paths import service_paths
 
-    return load_config(config).config.service.socket_path
+    return str(service_paths(load_config(config)).socket)
 
 
-def raise_for_error(response: httpx.Response, where: str) -> None:
-    """Turn an API error response into the matching millctl exception."""
-    if response.status_code < 400:
-        return
+def describe_mill(service: ServiceOut) -> str:
+    """One line naming the mill a service controls: config name, bus, simulated or real, and the socket."""
+    kind = "SIMULATED mill (embedded node)" if service.simulated else "real bus"
+    return (f"mill {service.mill_name!r} on {service.bus_interface}:{service.bus_channel} ({kind}), "
+            f"config {service.config_path}, socket {service.socket_path}")
+
+
+def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
+    """A recipe file's name and text, read on the client's side (the service opens no path a request names)."""
+    path = Path(path)
     try:
-        body = response.json()
-    except ValueError:
-        body = {}
-    if not isinstance(body, dict):
-        body = {}
-    code = str(body.get("code", f"http_{response.status_code}"))
-    message = str(body.get("message", response.text or response.reason_phrase))
-    status = response.status_code
-    if status == 409 and code in ("interlock_refused", "recipe_refused"):
-        raise InterlockRefusal(message, code, body)
-    if status == 423:
-        raise ControlHeld(message, code, body)
-    if status == 409:
-        raise ServiceRefused(message, code, body)
-    if status == 422:
-        raise RequestInvalid(message, body.get("field"))
-    if status == 401:
-        raise AccessDenied(f"{where}: {message}")
-    if status == 503:
-        raise NodeUnavailable(f"{where}: {message}")
-    raise BusError(f"{where}: HTTP {status} {code}: {message}")
+        return path.name, path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInputError(f"recipe {path}: cannot read it: {exc}") from None
 
 
-class SseParser:
-    """Incremental decoder of server-sent events: feed lines, get ``{"event": kind, "data": payload}`` dicts."""
+@dataclass(frozen=True)
+class Request:
+    """One API call, before it is sent: method, path, JSON body, query."""
 
-    def __init__(self) -> None:
-        self.kind = "message"
-        self.data: list[str] = []
-
-    def feed(self, line: str) -> dict[str, Any] | None:
-        """Take one line; return an event when the blank line ending it arrives."""
-        if not line:
-            item = {"event": self.kind, "data": json.loads("\n".join(self.data))} if self.data else None
-            self.kind, self.data = "message", []
-            return item
-        if line.startswith("event:"):
-            self.kind = line[6:].strip()
-        elif line.startswith("data:"):
-            self.data.append(line[5:].lstrip())
-        return None
+    method: str
+    path: str
+    body: dict[str, Any] | None = None
+    params: dict[str, Any] | None = None
 
 
-def parse_sse(lines: Iterator[str]) -> Iterator[dict[str, Any]]:
-    """Decode server-sent events from lines."""
-    parser = SseParser()
-    for line in lines:
-        item = parser.feed(line)
-        if item is not None:
-            yield item
+class Operation(Generic[P, T]):
+    """One row of the table: how the call's arguments become a :class:`Request`, and the model of the answer.
+
+    As an attribute of :class:`Client` it is a method returning ``T``; of
+    :class:`AsyncClient`, a coroutine method returning ``T``.
+    """
+
+    def __init__(self, out: type[T], build: Callable[P, Request]) -> None:
+        self.out = out
+        self.build = build
+
+    @overload
+    def __get__(self, client: None, owner: type[Any]) -> Operation[P, T]: ...
+    @overload
+    def __get__(self, client: Client, owner: type[Any]) -> Callable[P, T]: ...
+    @overload
+    def __get__(self, client: AsyncClient, owner: type[Any]) -> Callable[P, Awaitable[T]]: ...
+
+    def __get__(self, client: _Base | None, owner: type[Any]) -> Any:
+        if client is None:
+            return self
+        perform = client._perform
+
+        @functools.wraps(self.build)
+        def call(*args: P.args, **kwargs: P.kwargs) -> Any:
+            return perform(self, self.build(*args, **kwargs))
+
+        return call
+
+
+# ------------------------------------------------------------------ the table of operations
+def _get(path: str, **params: Any) -> Request:
+    return Request("GET", path, params=params or None)
+
+
+def _post(path: str, body: dict[str, Any] | None = None) -> Request:
+    return Request("POST", path, body)
+
+
+def _status() -> Request:
+    """The controller's status (GET /v1/status)."""
+    return _get("/v1/status")
+
+
+def _service() -> Request:
+    """The running service: pid, config path and sha256, law, margin (GET /v1/service)."""
+    return _get("/v1/service")
+
+
+def _envelope(points: int = 41) -> Request:
+    """The enforced limit curve on ``points`` vibration speeds (GET /v1/envelope)."""
+    return _get("/v1/envelope", points=points)
+
+
+def _check(rotary_rpm: float, vibration_rpm: float, temp_c: float | None = None) -> Request:
+    """Check a point against the envelope without commanding anything (POST /v1/envelope/check)."""
+    return _post("/v1/envelope/check", {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "temp_c": temp_c})
+
+
+def _events(after: int = 0, limit: int = 500) -> Request:
+    """Recorded events after sequence number ``after`` (GET /v1/events)."""
+    return _get("/v1/events", after=after, limit=limit)
+
+
+def _control_state() -> Request:
+    """Who holds control (GET /v1/control)."""
+    return _get("/v1/control")
+
+
+def _take(force: bool = False) -> Request:
+    """Take (or renew) the control lease; ``force`` takes over an expired one (POST /v1/control/take)."""
+    return _post("/v1/control/take", {"force": force})
+
+
+def _release() -> Request:
+    """Give control back (POST /v1/control/release)."""
+    return _post("/v1/control/release")
+
+
+def _arm() -> Request:
+    """Arm (needs control)."""
+    return _post("/v1/arm")
+
+
+def _disarm() -> Request:
+    """Disarm (needs control)."""
+    return _post("/v1/disarm")
+
+
+def _stop() -> Request:
+    """Controlled stop (needs control); aborts a running recipe."""
+    return _post("/v1/stop")
+
+
+def _estop() -> Request:
+    """Emergency stop (no control needed, always accepted)."""
+    return _post("/v1/estop")
+
+
+def _reset() -> Request:
+    """Clear a latched trip (needs control)."""
+    return _post("/v1/reset")
+
+
+def _set_speeds(
+    rotary_rpm: float,
+    vibration_rpm: float,
+    *,
+    rotary_rate_rpm_s: float | None = None,
+    vibration_rate_rpm_s: float | None = None,
+    linear: bool = False,
+    temp_c: float | None = None,
+    rate_c_per_min: float | None = None,
+) -> Request:
+    """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing (needs control).
+
+    An :class:`InterlockRefusal` when any part is outside the envelope: then no part is applied.
+    """
+    return _post("/v1/setpoints", {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm,
+                                   "rotary_rate_rpm_s": rotary_rate_rpm_s,
+                                   "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear,
+                                   "temp_c": temp_c, "rate_c_per_min": rate_c_per_min})
+
+
+def _set_furnace(temp_c: float | None, *, rate_c_per_min: float | None = None) -> Request:
+    """Furnace target (°C), or None for heater off (needs control)."""
+    return _post("/v1/furnace", {"temp_c": temp_c, "rate_c_per_min": rate_c_per_min})
+
+
+def _recipe_run(path: str | os.PathLike[str]) -> Request:
+    """Start a recipe file: read here and sent by content, never as a path on the service's disk (needs control)."""
+    name, text = read_recipe_text(path)
+    return _recipe_run_text(name, text)
+
+
+def _recipe_run_text(name: str, text: str) -> Request:
+    """Start a recipe given as its TOML text, recorded under ``name`` (needs control)."""
+    return _post("/v1/recipe/run", {"name": name, "text": text})
+
+
+def _recipe_pause(now: bool = False) -> Request:
+    """Pause the run at the next step boundary, or now."""
+    return _post("/v1/recipe/pause", {"now": now})
+
+
+def _recipe_resume() -> Request:
+    """Resume a paused or held run."""
+    return _post("/v1/recipe/resume")
+
+
+def _recipe_abort() -> Request:
+    """Abort the run (controlled stop)."""
+    return _post("/v1/recipe/abort")
+
+
+def _recipe() -> Request:
+    """Progress of the current or last run (GET /v1/recipe)."""
+    return _get("/v1/recipe")
 
 
 class _Base:
-    """What the sync and async clients share: where to connect, who we are, the lease, error mapping."""
+    """What both clients share: where to connect, who we are, the lease and the last event seen."""
 
     def __init__(
         self,
@@ -169,6 +297,11 @@ class _Base:
         self.token = token
         self.timeout_s = timeout_s
         self.lease_id: str | None = None
+        self.last_event_id: int | None = None
+        """Sequence number of the last event streamed; sent as ``Last-Event-ID`` when streaming again."""
+
+    _perform: Callable[[Operation[Any, Any], Request], Any]
+    """The transport: sends a request and returns the answer (:class:`Client`) or awaits it (:class:`AsyncClient`)."""
 
     def _headers(self) -> dict[str, str]:
         headers = {CLIENT_HEADER: self.name}
@@ -177,6 +310,32 @@ class _Base:
         if self.token:
             headers["Authorization"] = f"Bearer {self.token}"
         return headers
+
+    def _stream_headers(self) -> dict[str, str]:
+        headers = self._headers()
+        if self.last_event_id is not None:
+            headers[LAST_EVENT_ID_HEADER] = str(self.last_event_id)
+        return headers
+
+    def _answer(self, op: Operation[Any, T], response: httpx.Response) -> T:
+        """The response as the operation's model (or its error raised); the lease kept up to date."""
+        raise_for_error(response, self.where)
+        result = op.out.model_validate(response.json())
+        if isinstance(result, LeaseOut):
+            self.lease_id = result.lease_id
+        elif op.build is _release:
+            self.lease_id = None
+        return result
+
+    def _stream_item(self, sse: ServerSentEvent) -> StreamItem | None:
+        """One server-sent event as a model (None for kinds this client does not know)."""
+        if sse.event == StreamKind.EVENT:
+            event = EventOut.model_validate_json(sse.data)
+            self.last_event_id = event.seq
+            return event
+        if sse.event == StreamKind.STATUS:
+            return StatusOut.model_validate_json(sse.data)
+        return None
 
     def _unavailable(self, exc: Exception) -> BusError:
         if self.socket_path is not None:
@@ -192,9 +351,43 @@ class _Base:
     def _transport_kwargs(self) -> dict[str, Any]:
         return {"uds": self.socket_path} if self.socket_path is not None else {}
 
+    def _stream_request(self, count: int | None) -> dict[str, Any]:
+        return {"params": {"count": count} if count else None, "headers": self._stream_headers(),
+                "timeout": httpx.Timeout(self.timeout_s, read=None)}
 
-class Client(_Base):
-    """Synchronous client of the service (see the module docstring)."""
+
+_GONE = (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError)
+"""What a missing or vanished service looks like to httpx."""
+
+
+class Operations(_Base):
+    """The table: every API operation, once, with the model it returns."""
+
+    status = Operation(StatusOut, _status)
+    service = Operation(ServiceOut, _service)
+    envelope = Operation(EnvelopeOut, _envelope)
+    check = Operation(CheckOut, _check)
+    events = Operation(EventsOut, _events)
+    control_state = Operation(ControlOut, _control_state)
+    take_control = Operation(LeaseOut, _take)
+    release_control = Operation(ControlOut, _release)
+    arm = Operation(CommandOut, _arm)
+    disarm = Operation(CommandOut, _disarm)
+    stop = Operation(CommandOut, _stop)
+    estop = Operation(CommandOut, _estop)
+    reset = Operation(CommandOut, _reset)
+    set_speeds = Operation(CommandOut, _set_speeds)
+    set_furnace = Operation(CommandOut, _set_furnace)
+    recipe_run = Operation(RecipeOut, _recipe_run)
+    recipe_run_text = Operation(RecipeOut, _recipe_run_text)
+    recipe_pause = Operation(RecipeOut, _recipe_pause)
+    recipe_resume = Operation(RecipeOut, _recipe_resume)
+    recipe_abort = Operation(RecipeOut, _recipe_abort)
+    recipe = Operation(RecipeOut, _recipe)
+
+
+class Client(Operations):
+    """Synchronous client of the service: the operations as methods (see the module docstring)."""
 
     def __init__(self, socket_path: str | os.PathLike[str] | None = None, **kwargs: Any) -> None:
         super().__init__(socket_path, **kwargs)
@@ -211,66 +404,13 @@ class Client(_Base):
         """Close the connection (a held lease stays until released or expired)."""
         self._http.close()
 
-    def _call(self, method: str, path: str, body: Any = None, params: dict[str, Any] | None = None) -> Any:
+    def _perform(self, op: Operation[Any, T], request: Request) -> T:
         try:
-            response = self._http.request(method, path, json=body, params=params, headers=self._headers())
-        except (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError) as exc:
+            response = self._http.request(request.method, request.path, json=request.body, params=request.params,
+                                          headers=self._headers())
+        except _GONE as exc:
             raise self._unavailable(exc) from exc
-        raise_for_error(response, self.where)
-        return response.json()
-
-    # reading
-    def status(self) -> dict[str, Any]:
-        """The controller's status (GET /v1/status)."""
-        return dict(self._call("GET", "/v1/status"))
-
-    def service(self) -> dict[str, Any]:
-        """The running service: pid, config path and sha256, law, margin (GET /v1/service)."""
-        return dict(self._call("GET", "/v1/service"))
-
-    def envelope(self, points: int = 41) -> dict[str, Any]:
-        """The enforced limit curve (GET /v1/envelope)."""
-        return dict(self._call("GET", "/v1/envelope", params={"points": points}))
-
-    def check(self, rotary_rpm: float, vibration_rpm: float, temp_c: float | None = None) -> dict[str, Any]:
-        """Check a point against the envelope without commanding anything (POST /v1/envelope/check)."""
-        body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "temp_c": temp_c}
-        return dict(self._call("POST", "/v1/envelope/check", body))
-
-    def events(self, after: int = 0, limit: int = 500) -> dict[str, Any]:
-        """Recorded events after sequence number ``after`` (GET /v1/events)."""
-        return dict(self._call("GET", "/v1/events", params={"after": after, "limit": limit}))
-
-    def control_state(self) -> dict[str, Any]:
-        """Who holds control (GET /v1/control)."""
-        return dict(self._call("GET", "/v1/control"))
-
-    def stream(self, count: int | None = None) -> Iterator[dict[str, Any]]:
-        """Live ``{"event": "status"|"event", "data": …}`` dicts (GET /v1/stream) until closed or ``count``."""
-        params = {"count": count} if count else None
-        timeout = httpx.Timeout(self.timeout_s, read=None)
-        try:
-            with self._http.stream("GET", "/v1/stream", params=params, headers=self._headers(),
-                                   timeout=timeout) as response:
-                if response.status_code >= 400:
-                    response.read()
-                    raise_for_error(response, self.where)
-                yield from parse_sse(response.iter_lines())
-        except (httpx.ConnectError, FileNotFoundError, ConnectionError) as exc:
-            raise self._unavailable(exc) from exc
-
-    # control
-    def take_control(self, force: bool = False) -> dict[str, Any]:
-        """Take (or renew) the control lease; ``force`` takes over an expired one."""
-        lease = dict(self._call("POST", "/v1/control/take", {"force": force}))
-        self.lease_id = str(lease["lease_id"])
-        return lease
-
-    def release_control(self) -> dict[str, Any]:
-        """Give control back."""
-        result = dict(self._call("POST", "/v1/control/release"))
-        self.lease_id = None
-        return result
+        return self._answer(op, response)
 
     @contextlib.contextmanager
     def control(self, force: bool = False) -> Iterator[Client]:
@@ -282,75 +422,26 @@ class Client(_Base):
             with contextlib.suppress(BusError, InterlockError):
                 self.release_control()
 
-    # commands
-    def arm(self) -> dict[str, Any]:
-        """Arm (needs control)."""
-        return dict(self._call("POST", "/v1/arm"))
+    def stream(self, count: int | None = None) -> Iterator[StreamItem]:
+        """Live :class:`StatusOut` and :class:`EventOut` items (GET /v1/stream) until closed or ``count``.
 
-    def disarm(self) -> dict[str, Any]:
-        """Disarm (needs control)."""
-        return dict(self._call("POST", "/v1/disarm"))
-
-    def stop(self) -> dict[str, Any]:
-        """Controlled stop (needs control)."""
-        return dict(self._call("POST", "/v1/stop"))
-
-    def estop(self) -> dict[str, Any]:
-        """Emergency stop (no control needed, always accepted)."""
-        return dict(self._call("POST", "/v1/estop"))
-
-    def reset(self) -> dict[str, Any]:
-        """Clear a latched trip (needs control)."""
-        return dict(self._call("POST", "/v1/reset"))
-
-    def set_speeds(
-        self,
-        rotary_rpm: float,
-        vibration_rpm: float,
-        *,
-        rotary_rate_rpm_s: float | None = None,
-        vibration_rate_rpm_s: float | None = None,
-        linear: bool = False,
-        temp_c: float | None = None,
-        rate_c_per_min: float | None = None,
-    ) -> dict[str, Any]:
-        """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing (needs control).
-
-        An :class:`InterlockRefusal` when any part is outside the envelope: then no part is applied.
+        Resumes after :attr:`last_event_id` when set (a reconnection misses no event).
         """
-        body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "rotary_rate_rpm_s": rotary_rate_rpm_s,
-                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear, "temp_c": temp_c,
-                "rate_c_per_min": rate_c_per_min}
-        return dict(self._call("POST", "/v1/setpoints", body))
-
-    def set_furnace(self, temp_c: float | None, *, rate_c_per_min: float | None = None) -> dict[str, Any]:
-        """Furnace target (°C), or None for heater off (needs control)."""
-        return dict(self._call("POST", "/v1/furnace", {"temp_c": temp_c, "rate_c_per_min": rate_c_per_min}))
-
-    # recipes
-    def recipe_run(self, path: str | os.PathLike[str]) -> dict[str, Any]:
-        """Start a recipe file (a path on the service's machine; needs control)."""
-        return dict(self._call("POST", "/v1/recipe/run", {"path": str(Path(path).absolute())}))
-
-    def recipe_pause(self, now: bool = False) -> dict[str, Any]:
-        """Pause the run at the next step boundary, or now."""
-        return dict(self._call("POST", "/v1/recipe/pause", {"now": now}))
-
-    def recipe_resume(self) -> dict[str, Any]:
-        """Resume a paused run."""
-        return dict(self._call("POST", "/v1/recipe/resume"))
-
-    def recipe_abort(self) -> dict[str, Any]:
-        """Abort the run (controlled stop)."""
-        return dict(self._call("POST", "/v1/recipe/abort"))
-
-    def recipe(self) -> dict[str, Any]:
-        """Progress of the current or last run."""
-        return dict(self._call("GET", "/v1/recipe"))
+        try:
+            with connect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:
+                if source.response.status_code >= 400:
+                    source.response.read()
+                    raise_for_error(source.response, self.where)
+                for sse in source.iter_sse():
+                    item = self._stream_item(sse)
+                    if item is not None:
+                        yield item
+        except _GONE as exc:
+            raise self._unavailable(exc) from exc
 
 
-class AsyncClient(_Base):
-    """Asynchronous client of the service: the methods of :class:`Client`, as coroutines."""
+class AsyncClient(Operations):
+    """Asynchronous client of the service: the operations of :class:`Client`, as coroutines."""
 
     def __init__(self, socket_path: str | os.PathLike[str] | None = None, **kwargs: Any) -> None:
         super().__init__(socket_path, **kwargs)
@@ -367,68 +458,13 @@ class AsyncClient(_Base):
         """Close the connection."""
         await self._http.aclose()
 
-    async def _call(self, method: str, path: str, body: Any = None, params: dict[str, Any] | None = None) -> Any:
+    async def _perform(self, op: Operation[Any, T], request: Request) -> T:
         try:
-            response = await self._http.request(method, path, json=body, params=params, headers=self._headers())
-        except (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError) as exc:
+            response = await self._http.request(request.method, request.path, json=request.body,
+                                                params=request.params, headers=self._headers())
+        except _GONE as exc:
             raise self._unavailable(exc) from exc
-        raise_for_error(response, self.where)
-        return response.json()
-
-    async def status(self) -> dict[str, Any]:
-        """The controller's status."""
-        return dict(await self._call("GET", "/v1/status"))
-
-    async def service(self) -> dict[str, Any]:
-        """The running service."""
-        return dict(await self._call("GET", "/v1/service"))
-
-    async def envelope(self, points: int = 41) -> dict[str, Any]:
-        """The enforced limit curve."""
-        return dict(await self._call("GET", "/v1/envelope", params={"points": points}))
-
-    async def check(self, rotary_rpm: float, vibration_rpm: float, temp_c: float | None = None) -> dict[str, Any]:
-        """Check a point against the envelope."""
-        body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "temp_c": temp_c}
-        return dict(await self._call("POST", "/v1/envelope/check", body))
-
-    async def events(self, after: int = 0, limit: int = 500) -> dict[str, Any]:
-        """Recorded events after ``after``."""
-        return dict(await self._call("GET", "/v1/events", params={"after": after, "limit": limit}))
-
-    async def control_state(self) -> dict[str, Any]:
-        """Who holds control."""
-        return dict(await self._call("GET", "/v1/control"))
-
-    async def stream(self, count: int | None = None) -> AsyncIterator[dict[str, Any]]:
-        """Live status and event dicts, as :meth:`Client.stream`."""
-        params = {"count": count} if count else None
-        timeout = httpx.Timeout(self.timeout_s, read=None)
-        try:
-            async with self._http.stream("GET", "/v1/stream", params=params, headers=self._headers(),
-                                         timeout=timeout) as response:
-                if response.status_code >= 400:
-                    await response.aread()
-                    raise_for_error(response, self.where)
-                parser = SseParser()
-                async for line in response.aiter_lines():
-                    item = parser.feed(line)
-                    if item is not None:
-                        yield item
-        except (httpx.ConnectError, FileNotFoundError, ConnectionError) as exc:
-            raise self._unavailable(exc) from exc
-
-    async def take_control(self, force: bool = False) -> dict[str, Any]:
-        """Take (or renew) the control lease."""
-        lease = dict(await self._call("POST", "/v1/control/take", {"force": force}))
-        self.lease_id = str(lease["lease_id"])
-        return lease
-
-    async def release_control(self) -> dict[str, Any]:
-        """Give control back."""
-        result = dict(await self._call("POST", "/v1/control/release"))
-        self.lease_id = None
-        return result
+        return self._answer(op, response)
 
     @contextlib.asynccontextmanager
     async def control(self, force: bool = False) -> AsyncIterator[AsyncClient]:
@@ -440,70 +476,24 @@ class AsyncClient(_Base):
             with contextlib.suppress(BusError, InterlockError):
                 await self.release_control()
 
-    async def arm(self) -> dict[str, Any]:
-        """Arm."""
-        return dict(await self._call("POST", "/v1/arm"))
-
-    async def disarm(self) -> dict[str, Any]:
-        """Disarm."""
-        return dict(await self._call("POST", "/v1/disarm"))
-
-    async def stop(self) -> dict[str, Any]:
-        """Controlled stop."""
-        return dict(await self._call("POST", "/v1/stop"))
-
-    async def estop(self) -> dict[str, Any]:
-        """Emergency stop (no control needed)."""
-        return dict(await self._call("POST", "/v1/estop"))
-
-    async def reset(self) -> dict[str, Any]:
-        """Clear a latched trip."""
-        return dict(await self._call("POST", "/v1/reset"))
-
-    async def set_speeds(
-        self,
-        rotary_rpm: float,
-        vibration_rpm: float,
-        *,
-        rotary_rate_rpm_s: float | None = None,
-        vibration_rate_rpm_s: float | None = None,
-        linear: bool = False,
-        temp_c: float | None = None,
-        rate_c_per_min: float | None = None,
-    ) -> dict[str, Any]:
-        """Ramp to new speeds (rpm), with an optional furnace target (°C), all or nothing."""
-        body = {"rotary_rpm": rotary_rpm, "vibration_rpm": vibration_rpm, "rotary_rate_rpm_s": rotary_rate_rpm_s,
-                "vibration_rate_rpm_s": vibration_rate_rpm_s, "linear": linear, "temp_c": temp_c,
-                "rate_c_per_min": rate_c_per_min}
-        return dict(await self._call("POST", "/v1/setpoints", body))
-
-    async def set_furnace(self, temp_c: float | None, *, rate_c_per_min: float | None = None) -> dict[str, Any]:
-        """Furnace target (°C), or None for heater off."""
-        return dict(await self._call("POST", "/v1/furnace", {"temp_c": temp_c, "rate_c_per_min": rate_c_per_min}))
-
-    async def recipe_run(self, path: str | os.PathLike[str]) -> dict[str, Any]:
-        """Start a recipe file."""
-        return dict(await self._call("POST", "/v1/recipe/run", {"path": str(Path(path).absolute())}))
-
-    async def recipe_pause(self, now: bool = False) -> dict[str, Any]:
-        """Pause the run."""
-        return dict(await self._call("POST", "/v1/recipe/pause", {"now": now}))
-
-    async def recipe_resume(self) -> dict[str, Any]:
-        """Resume the run."""
-        return dict(await self._call("POST", "/v1/recipe/resume"))
-
-    async def recipe_abort(self) -> dict[str, Any]:
-        """Abort the run."""
-        return dict(await self._call("POST", "/v1/recipe/abort"))
-
-    async def recipe(self) -> dict[str, Any]:
-        """Progress of the current or last run."""
-        return dict(await self._call("GET", "/v1/recipe"))
+    async def stream(self, count: int | None = None) -> AsyncIterator[StreamItem]:
+        """Live status and event items, as :meth:`Client.stream` (resuming after :attr:`last_event_id`)."""
+        try:
+            async with aconnect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:
+                if source.response.status_code >= 400:
+                    await source.response.aread()
+                    raise_for_error(source.response, self.where)
+                async for sse in source.aiter_sse():
+                    item = self._stream_item(sse)
+                    if item is not None:
+                        yield item
+        except _GONE as exc:
+            raise self._unavailable(exc) from exc
 
 
 __all__ = [
     "CLIENT_HEADER",
+    "LAST_EVENT_ID_HEADER",
     "LEASE_HEADER",
     "AccessDenied",
     "AsyncClient",
@@ -511,11 +501,15 @@ __all__ = [
     "ControlHeld",
     "InterlockRefusal",
     "NodeUnavailable",
+    "Operation",
+    "Operations",
+    "Request",
     "RequestInvalid",
     "ServiceRefused",
     "ServiceUnavailable",
-    "SseParser",
+    "StreamItem",
     "default_socket_path",
-    "parse_sse",
+    "describe_mill",
     "raise_for_error",
+    "read_recipe_text",
 ]

@@ -17,6 +17,10 @@ class ExitCode(enum.IntEnum):
     INTERLOCK = 2
     BUS = 3
     INTERNAL = 4
+    INTERRUPTED = 130
+    """Ctrl+C (128 + SIGINT), never mistaken for a refusal."""
+    BROKEN_PIPE = 141
+    """The reader of stdout went away (``| head``; 128 + SIGPIPE): ended quietly."""
 
 
 class MillctlError(Exception):

@@ -70,6 +70,8 @@ class EventKind(enum.StrEnum):
     """The control lease was taken or released."""
     SERVICE = "service"
     """The service started, stopped or failed."""
+    RECORDS = "records"
+    """Records could not be written (a full or failing disk), or can be again."""
 
 
 class ErrorCode(enum.StrEnum):
@@ -83,6 +85,9 @@ class ErrorCode(enum.StrEnum):
     CONTROL_HELD = "control_held"
     UNAUTHORIZED = "unauthorized"
     NODE_UNREACHABLE = "node_unreachable"
+    BUSY = "busy"
+    BODY_TOO_LARGE = "body_too_large"
+    BAD_REQUEST = "bad_request"
     HTTP_ERROR = "http_error"
 
 

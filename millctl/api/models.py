@@ -1,5 +1,8 @@
 """Request and response models of the service API (``/v1``), defined once for every part of millctl.
 
+Keys follow one scheme: ``<what>_<axis>_<unit>`` (``setpoint_rotary_rpm``,
+``limit_rotary_rpm``, ``vibration_rpm``), units always last.
+
 Every request is validated and unknown fields are refused; every float in a
 response may be null where the value is not finite (e.g. an unbounded limit).
 :class:`StatusOut` mirrors :class:`millctl.controller.Status` field for field
@@ -55,7 +58,8 @@ class LinkOut(Strict):
     stale: bool
     frames: int = Field(description="valid frames received")
     e2e: dict[str, int] = Field(description="E2E verdict counts (ok, repeated, wrong-crc …)")
-    e2e_score: int = Field(description="the E2E receiver's error score")
+    e2e_score: int = Field(description="the E2E receiver's net error score")
+    e2e_sequence_score: int = Field(description="the E2E receiver's sequence score (repeated/out-of-sequence counters)")
 
 
 class BusReceiveOut(Strict):
@@ -115,9 +119,9 @@ class StatusOut(Strict):
 class EnvelopePoint(Strict):
     """The enforced limit at one vibration speed."""
 
-    omega_v_rpm: float = Field(description="vibration speed ω_v (rpm)")
-    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
-    law_limit_rpm: float | None = Field(description="the law's limit without margin (rpm)")
+    vibration_rpm: float = Field(description="vibration speed ω_v (rpm)")
+    limit_rotary_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
+    law_limit_rotary_rpm: float | None = Field(description="the law's rotary limit without margin (rpm)")
     law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
 
 
@@ -149,7 +153,7 @@ class CheckOut(Strict):
 
     ok: bool
     reason: str = Field(description="the verdict in words")
-    omega_r_limit_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
+    limit_rotary_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
     margin_rpm: float | None = Field(description="limit minus ω_r (rpm)")
     refusals: list[Refusal]
 
@@ -234,8 +238,10 @@ class EventsOut(Strict):
 
 
 class ServiceOut(Strict):
-    """The running service: process, config, envelope law and margin, records."""
+    """The running service: which mill it controls, its process, config, envelope law and margin, records."""
 
+    mill_name: str = Field(description="the config's name of the mill")
+    simulated: bool = Field(description="true when the node is the embedded simulation, not a real mill")
     pid: int
     version: str
     started_unix: float = Field(description="Unix time the service started (s)")
@@ -246,14 +252,23 @@ class ServiceOut(Strict):
     bus_interface: str
     bus_channel: str
     embedded_node: bool = Field(description="the simulated node runs inside the service")
+    socket_path: str = Field(description="the Unix socket the API is served on")
     records_dir: str
+    bus_log: str = Field(description="this session's bus log file")
+    warnings: list[str] = Field(default_factory=list, description="what the operator must know about the service "
+                                "itself, e.g. records that cannot be written (the mill is controlled as before)")
 
 
 # ---------------------------------------------------------------- recipes
 class RecipeRunRequest(Strict):
-    """Run the recipe file at ``path`` (on the service's machine)."""
+    """Run a recipe sent by content: its TOML ``text``, and a ``name`` for the record (e.g. the client's file name).
 
-    path: str = Field(min_length=1, max_length=4096, description="recipe TOML file on the service's machine")
+    The service opens no path a request names: a client may be on another machine.
+    """
+
+    name: str = Field(min_length=1, max_length=255, pattern=r"^[^\x00-\x1f\x7f]+$",
+                      description="where the recipe came from, for the run record (no control characters)")
+    text: str = Field(min_length=1, max_length=512 * 1024, description="the recipe file's TOML text")
 
 
 class RecipePauseRequest(Strict):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -26,6 +27,7 @@ COMMAND_MODULES = (
     "millctl.cli.client_cmd",
     "millctl.cli.tui_cmd",
     "millctl.cli.bench_cmd",
+    "millctl.cli.completion_cmd",
 )
 """Command modules, in the order ``--help`` lists them."""
 
@@ -36,6 +38,10 @@ exit codes:
   2  interlock refusal or trip, or an aborted run
   3  bus, node or service error
   4  internal error (rerun with --debug for the traceback)
+  130  interrupted (Ctrl+C)
+  141  stdout closed by its reader (e.g. `| head`): ended quietly
+
+--json: one document on stdout, {"schema": 1, "command", "ok", "result" | "error"}; errors too
 
 configuration: --config FILE > $MILLCTL_CONFIG > ./config/mill.toml > packaged default
 """
@@ -80,19 +86,39 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(ExitCode.INVALID_INPUT)
     try:
         return int(args.handler(args))
-    except MillctlError as exc:
-        if args.debug:
+    except BrokenPipeError:
+        return _stdout_gone()
+    except (MillctlError, KeyboardInterrupt) as exc:
+        if args.debug and isinstance(exc, MillctlError):
             logging.exception("millctl failed")
-        print(f"millctl: {exc}", file=sys.stderr)
-        return int(exc.exit_code)
-    except KeyboardInterrupt:
-        print("millctl: interrupted", file=sys.stderr)
-        return int(ExitCode.INTERLOCK)
+        return _fail(args, exc)
     except Exception as exc:
         if args.debug:
             raise
-        print(f"millctl: internal error: {type(exc).__name__}: {exc} (rerun with --debug)", file=sys.stderr)
-        return int(ExitCode.INTERNAL)
+        return _fail(args, exc)
+
+
+def _fail(args: argparse.Namespace, exc: BaseException) -> int:
+    """Say what failed (stderr; and as the JSON error on stdout with --json); return the exit code."""
+    from millctl.cli.failures import describe_failure
+    from millctl.cli.output import print_json_error
+
+    code, message, error = describe_failure(exc)
+    if getattr(args, "json", False):
+        try:
+            print_json_error(args, error)
+        except BrokenPipeError:
+            return _stdout_gone()
+    print(f"millctl: {message}", file=sys.stderr)
+    return code
+
+
+def _stdout_gone() -> int:
+    """The reader of stdout left (``| head``): end quietly, with no traceback at exit either."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return int(ExitCode.BROKEN_PIPE)
 
 
 __all__ = ["COMMAND_MODULES", "build_parser", "main"]

@@ -87,7 +87,7 @@ def load_report(args: argparse.Namespace) -> dict[str, Any]:
 def _load(args: argparse.Namespace) -> int:
     report = load_report(args)
     if args.json:
-        print_json(report)
+        print_json(args, report)
     else:
         from rich.table import Table
 
@@ -160,7 +160,7 @@ def frame_table() -> list[dict[str, Any]]:
 def _frames(args: argparse.Namespace) -> int:
     rows = frame_table()
     if args.json:
-        print_json(rows)
+        print_json(args, rows)
         return int(ExitCode.OK)
     lines = ["| ID | frame | sender | rate | E2E data ID | signals (unit, range) |", "|---|---|---|---|---|---|"]
     for row in rows:

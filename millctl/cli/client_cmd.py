@@ -3,17 +3,23 @@
 One-shot commands take control for their duration and give it back; when
 another client holds it they exit 2 naming the holder. E-stop needs no
 control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
+Every command names the mill it talks to (config name, bus, simulated or
+real, socket): on stderr, in the status view, and as ``mill`` in JSON.
 """
 
 from __future__ import annotations
 
 import argparse
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from millctl.api import CommandOut, ControlOut, EventKind, EventOut, ServiceOut, StatusOut
 from millctl.cli.args import finite_float
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
+
+if TYPE_CHECKING:
+    from millctl.client import Client
 
 SIMPLE_COMMANDS = {
     "arm": "arm the node (from DISABLED)",
@@ -32,7 +38,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     take = argparse.ArgumentParser(add_help=False)
     take.add_argument("--force", action="store_true", help="take over control whose holder's lease has expired")
 
-    status = subparsers.add_parser("status", parents=[common], help="the mill's status, from the running service")
+    status = subparsers.add_parser("status", parents=[common], help="the mill's status, from the running service",
+                                   description="The controller's status and who holds control.")
     status.set_defaults(handler=_status)
     setp = subparsers.add_parser(
         "set", parents=[common, take], help="ramp to new speeds (and furnace target); refused outside the envelope"
@@ -48,31 +55,44 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         parents = [common] if name == "estop" else [common, take]
         sub = subparsers.add_parser(name, parents=parents, help=text)
         sub.set_defaults(handler=_simple, action=name)
-    watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)")
+    watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)",
+                                  description="A live view of the mill from the service's event stream; "
+                                  "Ctrl+C quits (exit 0).")
     watch.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path of the config)")
     watch.set_defaults(handler=_watch)
 
 
-def _client(args: argparse.Namespace) -> Any:
+def _client(args: argparse.Namespace) -> Client:
     from millctl.client import Client
 
     return Client(args.socket, config=args.config, name="cli")
 
 
+def say_mill(client: Client) -> ServiceOut:
+    """Name the mill on stderr; return the service's description."""
+    from millctl.client import describe_mill
+
+    service = client.service()
+    stderr_console().print(f"millctl: {describe_mill(service)}", markup=False, highlight=False)
+    return service
+
+
 def _status(args: argparse.Namespace) -> int:
     with _client(args) as client:
+        service = client.service()
         status = client.status()
         control = client.control_state()
     if args.json:
-        print_json({"status": status, "control": control})
+        print_json(args, {"mill": service, "status": status, "control": control})
     else:
-        stdout_console().print(render_status(status, control))
+        stdout_console().print(render_status(status, control, service=service))
     return int(ExitCode.OK)
 
 
 def _set(args: argparse.Namespace) -> int:
     results = []
     with _client(args) as client, client.control(force=args.force):
+        say_mill(client)
         results.append(
             client.set_speeds(
                 args.rot_rpm,
@@ -89,6 +109,7 @@ def _set(args: argparse.Namespace) -> int:
 
 def _simple(args: argparse.Namespace) -> int:
     with _client(args) as client:
+        say_mill(client)
         if args.action == "estop":
             result = client.estop()
         else:
@@ -98,14 +119,15 @@ def _simple(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
-def _report(args: argparse.Namespace, results: list[dict[str, Any]]) -> None:
+def _report(args: argparse.Namespace, results: list[CommandOut]) -> None:
+    """Each accepted command and the state after it; with --json the last state is the result's ``state``."""
     if args.json:
-        print_json(results if len(results) > 1 else results[0])
+        print_json(args, {"state": results[-1].state, "commands": results})
         return
     out = stdout_console()
     for result in results:
-        ramp = f" (ramp {result['duration_s']:.1f} s)" if result.get("duration_s") else ""
-        out.print(f"accepted: {result['message']}{ramp}; state {result['state']}", markup=False)
+        ramp = f" (ramp {result.duration_s:.1f} s)" if result.duration_s else ""
+        out.print(f"accepted: {result.message}{ramp}; state {result.state}", markup=False)
 
 
 def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
@@ -114,52 +136,59 @@ def _num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
     return f"{value:{fmt}}{unit}"
 
 
-def render_status(status: dict[str, Any], control: dict[str, Any] | None = None, events: Any = ()) -> Any:
-    """A compact rich view: state, setpoints vs measured, limit and margin, furnace, physics, links, events."""
+def render_status(
+    status: StatusOut, control: ControlOut | None = None, events: Any = (), service: ServiceOut | None = None
+) -> Any:
+    """A compact rich view: mill, warnings, state, setpoints vs measured, limit, furnace, physics, links, events."""
     from rich.table import Table
+    from rich.text import Text
+
+    from millctl.client import describe_mill
 
     table = Table.grid(padding=(0, 2))
     table.add_column(style="bold")
     table.add_column()
-    state = status["state"] + (f" — {status['trip_cause']}" if status.get("trip_cause") else "")
-    table.add_row("state", f"{state}   node {status.get('node_state') or '—'} {' '.join(status['node_faults'])}")
+    if service is not None:
+        table.add_row("mill", describe_mill(service))
+        for warning in service.warnings:
+            table.add_row("WARNING", Text(warning, style="bold red"))
+    s = status
+    state = s.state + (f" — {s.trip_cause}" if s.trip_cause else "")
+    table.add_row("state", f"{state}   node {s.node_state or '—'} {' '.join(s.node_faults)}")
     if control is not None:
-        holder = control.get("holder") or "nobody"
-        table.add_row("control", holder + (" (lease expired)" if control.get("expired") else ""))
+        holder = control.holder or "nobody"
+        table.add_row("control", holder + (" (lease expired)" if control.expired else ""))
     table.add_row(
         "ω_r rotary",
-        f"set {_num(status['setpoint_rotary_rpm'])} → {_num(status['target_rotary_rpm'])}   "
-        f"measured {_num(status['measured_rotary_rpm'])} rpm   torque {_num(status['rotary_torque_nm'], '.2f')} N·m",
+        f"set {_num(s.setpoint_rotary_rpm)} → {_num(s.target_rotary_rpm)}   "
+        f"measured {_num(s.measured_rotary_rpm)} rpm   torque {_num(s.rotary_torque_nm, '.2f')} N·m",
     )
     table.add_row(
         "ω_v vibration",
-        f"set {_num(status['setpoint_vibration_rpm'])} → {_num(status['target_vibration_rpm'])}   "
-        f"measured {_num(status['measured_vibration_rpm'])} rpm   ramp {_num(status['ramp_remaining_s'])} s left",
+        f"set {_num(s.setpoint_vibration_rpm)} → {_num(s.target_vibration_rpm)}   "
+        f"measured {_num(s.measured_vibration_rpm)} rpm   ramp {_num(s.ramp_remaining_s)} s left",
     )
-    every = "" if status["law_is_every_cycle"] else "  (not the every-cycle bound here)"
+    every = "" if s.law_is_every_cycle else "  (not the every-cycle bound here)"
     table.add_row(
         "limit",
-        f"ω_r ≤ {_num(status['limit_rotary_rpm'])} rpm, margin {_num(status['margin_rpm'])} rpm   "
-        f"law {status['law']}, margin {status['margin']:.0%}{every}",
+        f"ω_r ≤ {_num(s.limit_rotary_rpm)} rpm, margin {_num(s.margin_rpm)} rpm   "
+        f"law {s.law}, margin {_num(s.margin, '.0%')}{every}",
     )
     table.add_row(
         "furnace",
-        f"{_num(status['furnace_temp_c'], '.1f', ' °C')}   target {_num(status['furnace_target_c'], '.1f', ' °C')}   "
-        f"heater {_num(status['heater_pct'], '.0f', ' %')}",
+        f"{_num(s.furnace_temp_c, '.1f', ' °C')}   target {_num(s.furnace_target_c, '.1f', ' °C')}   "
+        f"heater {_num(s.heater_pct, '.0f', ' %')}",
     )
     table.add_row(
         "physics",
-        f"detached {status['detached'] if status['detached'] is not None else '—'}   θ_d "
-        f"{_num(status['theta_d_deg'], '.1f', '°')}   impacts {_num(status['impact_rate_hz'], '.1f', ' Hz')}   "
-        f"{_num(status['impact_energy_mj'], '.2f', ' mJ')}   shear {_num(status['shear_kpa'], '.1f', ' kPa')}",
+        f"detached {s.detached if s.detached is not None else '—'}   θ_d "
+        f"{_num(s.theta_d_deg, '.1f', '°')}   impacts {_num(s.impact_rate_hz, '.1f', ' Hz')}   "
+        f"{_num(s.impact_energy_mj, '.2f', ' mJ')}   shear {_num(s.shear_kpa, '.1f', ' kPa')}",
     )
-    links = [
-        f"{name} {_num(link.get('age_s'), '.2f', ' s')}{' STALE' if link.get('stale') else ''}"
-        for name, link in status.get("link", {}).items()
-    ]
+    links = [f"{name} {_num(link.age_s, '.2f', ' s')}{' STALE' if link.stale else ''}" for name, link in s.link.items()]
     table.add_row("links", "   ".join(links))
     for event in events:
-        table.add_row(f"#{event['seq']}", f"[{event['kind']}] {event['source']}: {event['message']}")
+        table.add_row(f"#{event.seq}", f"[{event.kind}] {event.source}: {event.message}")
     return table
 
 
@@ -167,24 +196,28 @@ def _watch(args: argparse.Namespace) -> int:
     from rich.live import Live
 
     console = stderr_console()
-    events: deque[dict[str, Any]] = deque(maxlen=6)
+    events: deque[EventOut] = deque(maxlen=6)
     with _client(args) as client:
+        service = client.service()
         control = client.control_state()
         status = client.status()
         try:
-            with Live(render_status(status, control), console=console, refresh_per_second=4) as live:
+            first = render_status(status, control, service=service)
+            with Live(first, console=console, refresh_per_second=4) as live:
                 for item in client.stream():
-                    if item["event"] == "event":
-                        events.append(item["data"])
-                        if item["data"]["kind"] == "control":
+                    if isinstance(item, EventOut):
+                        events.append(item)
+                        if item.kind is EventKind.CONTROL:
                             control = client.control_state()
-                    elif item["event"] == "status":
-                        status = item["data"]
-                    live.update(render_status(status, control, events))
+                        elif item.kind is EventKind.RECORDS:
+                            service = client.service()
+                    else:
+                        status = item
+                    live.update(render_status(status, control, events, service=service))
         except KeyboardInterrupt:
             return int(ExitCode.OK)
     console.print("millctl watch: the service closed the stream", markup=False)
     return int(ExitCode.OK)
 
 
-__all__ = ["register", "render_status"]
+__all__ = ["register", "render_status", "say_mill"]

@@ -27,7 +27,7 @@ def _show(args: argparse.Namespace) -> int:
     loaded = load_config(args.config)
     data = loaded.config.model_dump(mode="json")
     if args.json:
-        print_json({"source": loaded.source, "sha256": loaded.sha256, "config": data})
+        print_json(args, {"source": loaded.source, "sha256": loaded.sha256, "config": data})
         return int(ExitCode.OK)
     console = stdout_console()
     console.print(f"# source: {loaded.source}  sha256: {loaded.sha256[:16]}")

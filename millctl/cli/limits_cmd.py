@@ -72,10 +72,10 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
     for i, w_v in enumerate(omega_v_rpm):
         rows.append(
             {
-                "omega_v_rpm": float(w_v),
+                "vibration_rpm": float(w_v),
                 "gamma": float(gamma[i]),
-                **{f"{name}_rpm": float(values[i]) for name, values in laws.items()},
-                "envelope_rpm": float(envelope_rpm[i]),
+                "law_limit_rotary_rpm": {name: float(values[i]) for name, values in laws.items()},
+                "limit_rotary_rpm": float(envelope_rpm[i]),
                 "law_is_every_cycle": bool(every_cycle[i]),
                 "no_real_limit": bool(flags.no_real_limit[i]),
                 "spring_below_inertia": bool(flags.spring_below_inertia[i]),
@@ -88,7 +88,7 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
         "law": envelope.law.value,
         "margin": envelope.margin,
         "rod_mass_kg": p.rod_mass_kg,
-        "switch_omega_v_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
+        "switch_vibration_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
         "rows": rows,
     }
 
@@ -98,15 +98,15 @@ def _run(args: argparse.Namespace) -> int:
     if args.plot:
         plot_limits(args.plot, table, args)
     if args.json:
-        print_json(table)
+        print_json(args, table)
     else:
         _print_table(table)
-    not_every = [r["omega_v_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
+    not_every = [r["vibration_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
     if not_every:
         stderr_console().print(
             f"[yellow]warning:[/] the configured law {table['law']} is not the every-cycle detachment bound "
             f"at ω_v = {', '.join(f'{v:g}' for v in not_every)} rpm (k < mω_v² above "
-            f"{table['switch_omega_v_rpm']:.1f} rpm): rods may stay pinned for many cycles there. "
+            f"{table['switch_vibration_rpm']:.1f} rpm): rods may stay pinned for many cycles there. "
             "See docs/model.md#eq-9."
         )
     return int(ExitCode.OK)
@@ -136,10 +136,10 @@ def _print_table(table: dict[str, Any]) -> None:
         if not row["law_is_every_cycle"]:
             flags.append("†")
         out.add_row(
-            f"{row['omega_v_rpm']:.0f}",
+            f"{row['vibration_rpm']:.0f}",
             f"{row['gamma']:.3f}",
-            *(f"{row[f'{law.value}_rpm']:.1f}" for law in LAWS),
-            f"{row['envelope_rpm']:.1f}",
+            *(f"{row['law_limit_rotary_rpm'][law.value]:.1f}" for law in LAWS),
+            f"{row['limit_rotary_rpm']:.1f}",
             " ".join(flags),
         )
     out.caption = (
@@ -178,7 +178,7 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
         alpha=0.12,
         label=f"envelope ({law.value}, margin {envelope.margin:.0%})",
     )
-    ax5.axvline(table["switch_omega_v_rpm"], color="grey", ls=":", label="k = mω_v²")
+    ax5.axvline(table["switch_vibration_rpm"], color="grey", ls=":", label="k = mω_v²")
     ax5.set(
         xlabel="vibration speed ω_v (rpm)",
         ylabel="max rotary speed ω_r,max (rpm)",

@@ -1,4 +1,14 @@
-"""Where CLI output goes: data on stdout, diagnostics on stderr, colour only on a TTY."""
+"""Where CLI output goes: data on stdout, diagnostics on stderr, colour only on a TTY.
+
+With ``--json`` every command prints one JSON document on stdout, in one shape::
+
+    {"schema": 1, "command": "set", "ok": true, "result": {...}}
+    {"schema": 1, "command": "set", "ok": false, "error": {"code": ..., "message": ..., "exit_code": 2, ...}}
+
+``schema`` is the version of this contract (:data:`JSON_SCHEMA_VERSION`). Keys
+follow one scheme: snake_case, ``<what>_<axis>_<unit>`` (``setpoint_rotary_rpm``,
+``limit_rotary_rpm``, ``vibration_rpm``), the unit last.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pydantic import BaseModel
 from rich.console import Console
 
 PIPE_WIDTH = 160
@@ -27,16 +38,62 @@ def stderr_console() -> Console:
     return Console(file=sys.stderr, highlight=False, soft_wrap=True)
 
 
-def print_json(data: Any) -> None:
-    """Print machine-readable data on stdout."""
-    json.dump(data, sys.stdout, indent=2, ensure_ascii=False, default=str)
+JSON_SCHEMA_VERSION = 1
+"""Version of the CLI's JSON contract: raised when a key is renamed or removed (new keys do not raise it)."""
+
+
+def plain(data: Any) -> Any:
+    """``data`` with every :mod:`millctl.api` model (and model inside lists and dicts) as plain JSON data."""
+    if isinstance(data, BaseModel):
+        return data.model_dump(mode="json")
+    if isinstance(data, dict):
+        return {str(k): plain(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [plain(v) for v in data]
+    return data
+
+
+def command_name(args: Any) -> str:
+    """The command as typed: ``set``, ``recipe run``, ``bus load``."""
+    top = str(getattr(args, "command", None) or "")
+    sub = getattr(args, f"{top}_command", None)
+    return f"{top} {sub}" if sub else top
+
+
+def json_document(command: str, *, result: Any = None, error: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The one shape of every ``--json`` output: schema version, command, ok, the result and/or the error.
+
+    ``ok`` is false exactly when there is an error (and the exit code is not 0).
+    """
+    document: dict[str, Any] = {"schema": JSON_SCHEMA_VERSION, "command": command, "ok": error is None}
+    if result is not None:
+        document["result"] = plain(result)
+    if error is not None:
+        document["error"] = plain(error)
+    return document
+
+
+def _dump(document: dict[str, Any]) -> None:
+    json.dump(document, sys.stdout, indent=2, ensure_ascii=False, default=str)
     sys.stdout.write("\n")
+    sys.stdout.flush()
+
+
+def print_json(args: Any, result: Any, error: dict[str, Any] | None = None) -> None:
+    """Print a command's result (and its error, for a result that is a failure) on stdout, in the contract's shape."""
+    _dump(json_document(command_name(args), result=result, error=error))
+
+
+def print_json_error(args: Any, error: dict[str, Any]) -> None:
+    """Print a command's error on stdout, in the JSON contract's shape."""
+    _dump(json_document(command_name(args), error=error))
 
 
 def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place.
 
-    A failure leaves no half-written file behind.
+    A failure leaves no half-written file behind. The file gets the mode a plain
+    ``open()`` would give it under the user's umask (mkstemp's own 0600 would not).
     """
     path = Path(path)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent or ".")
@@ -44,9 +101,17 @@ def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
     tmp = Path(tmp_name)
     try:
         write(tmp)
+        tmp.chmod(0o666 & ~current_umask())
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def current_umask() -> int:
+    """The process's umask (read by setting it and putting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def hms(seconds: float) -> str:
@@ -55,4 +120,16 @@ def hms(seconds: float) -> str:
     return f"{whole // 3600:d}:{whole % 3600 // 60:02d}:{whole % 60:02d}"
 
 
-__all__ = ["hms", "print_json", "stderr_console", "stdout_console", "write_atomically"]
+__all__ = [
+    "JSON_SCHEMA_VERSION",
+    "command_name",
+    "current_umask",
+    "hms",
+    "json_document",
+    "plain",
+    "print_json",
+    "print_json_error",
+    "stderr_console",
+    "stdout_console",
+    "write_atomically",
+]

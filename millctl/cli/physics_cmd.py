@@ -49,6 +49,7 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
     from millctl.physics.methods import first_impact
     from millctl.physics.model import MillModel, Scene
     from millctl.physics.simulate import simulate
+    from millctl.physics.slip import no_slip_check
     from millctl.physics.telemetry import revolution_summary
     from millctl.units import rpm_to_rad_s
 
@@ -91,17 +92,28 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
             "energy_j": event.energy_j,
         }
     summary = revolution_summary(model, w_r, w_v)
+    check = no_slip_check(scene)  # rod 0's carried arc, up to its first detachment (or one revolution)
+    no_slip = {
+        "violated": check.violated,
+        "friction": check.friction,
+        "onset_time_s": check.onset_time_s if check.violated else None,
+        "onset_theta_deg": math.degrees(check.onset_theta_rad) if check.violated else None,
+        "onset_alpha_deg": math.degrees(check.onset_alpha_rad) if check.violated else None,
+        "arc_end_s": check.arc_end_s,
+        "detached": check.detached,
+    }
     return {
         "config": loaded.source,
         "variant": model.variant.value,
         "method": args.method,
-        "rot_rpm": args.rot_rpm,
-        "vib_rpm": args.vib_rpm,
+        "rotary_rpm": args.rot_rpm,
+        "vibration_rpm": args.vib_rpm,
         "theta0_deg": args.theta0_deg,
         "alpha0_deg": args.alpha0_deg,
         "pinned": detachment is None,
         "first_detachment": detachment,
         "first_impact": impact,
+        "no_slip": no_slip,
         "summary": {
             k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in dataclasses.asdict(summary).items()
         },
@@ -111,12 +123,12 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
 def _run(args: argparse.Namespace) -> int:
     report = physics_report(args)
     if args.json:
-        print_json(report)
+        print_json(args, report)
         return int(ExitCode.OK)
     out = stdout_console()
     out.print(
-        f"{report['variant']} physics, {report['method']} events: ω_r = {report['rot_rpm']:g} rpm, "
-        f"ω_v = {report['vib_rpm']:g} rpm, θ0 = {report['theta0_deg']:g}°, α0 = {report['alpha0_deg']:g}°"
+        f"{report['variant']} physics, {report['method']} events: ω_r = {report['rotary_rpm']:g} rpm, "
+        f"ω_v = {report['vibration_rpm']:g} rpm, θ0 = {report['theta0_deg']:g}°, α0 = {report['alpha0_deg']:g}°"
     )
     det = report["first_detachment"]
     if det is None:
@@ -137,6 +149,16 @@ def _run(args: argparse.Namespace) -> int:
             f"({imp['contact_x_m'] * 1e3:.3f}, {imp['contact_y_m'] * 1e3:.3f}) mm, "
             f"v_n = {imp['normal_velocity_m_s']:.4f} m/s, energy = {imp['energy_j'] * 1e3:.4f} mJ"
         )
+    ns = report["no_slip"]
+    if ns["violated"]:
+        end = "detachment" if ns["detached"] else "the end of the revolution"
+        out.print(
+            f"[yellow]no-slip violated:[/] rod 0 needs |F_t|/N > μ = {ns['friction']:g} "
+            f"from t = {ns['onset_time_s']:.6f} s, θ = {ns['onset_theta_deg']:.2f}°, α = {ns['onset_alpha_deg']:.2f}° "
+            f"until {end} at t = {ns['arc_end_s']:.6f} s (the wall cannot carry it: it slides; docs/model.md, slip)"
+        )
+    else:
+        out.print(f"no-slip holds: |F_t|/N ≤ μ = {ns['friction']:g} on rod 0's carried arc")
     s = report["summary"]
     theta = "—" if s["theta_d_rad"] is None else f"{math.degrees(s['theta_d_rad']):.2f}°"
     out.print(

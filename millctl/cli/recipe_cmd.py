@@ -9,7 +9,7 @@ from typing import Any
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.cli.recipe_run_cmd import register_run
 from millctl.config import load_config
-from millctl.errors import ExitCode, RecipeError
+from millctl.errors import ExitCode, InterlockError
 from millctl.recipes import RecipePlan, load_recipe, plan_recipe
 
 
@@ -18,29 +18,44 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser = subparsers.add_parser("recipe", help="check, plan and run milling recipes")
     sub = parser.add_subparsers(dest="recipe_command", metavar="ACTION", required=True)
     check = sub.add_parser(
-        "check", help="validate a recipe and pre-flight it against the envelope (exit 1 on any problem)"
+        "check", help="validate a recipe (exit 1 when invalid) and pre-flight it against the envelope "
+        "(exit 2 when refused, as every refusal)"
     )
-    check.add_argument("file")
+    check.add_argument("--json", action="store_true", help="machine-readable output")
+    check.add_argument("file", help="the recipe (TOML)")
     check.set_defaults(handler=_check)
     plan = sub.add_parser("plan", help="the timeline of a recipe: steps, setpoints, margins, expected impacts")
-    plan.add_argument("file")
+    plan.add_argument("file", help="the recipe (TOML)")
     plan.add_argument("--json", action="store_true", help="machine-readable output")
     plan.set_defaults(handler=_plan)
     register_run(sub)
 
 
+class PreflightRefused(InterlockError):
+    """A valid recipe whose plan leaves the envelope: refused like any command the interlock refuses (exit 2)."""
+
+    def __init__(self, source: str, problems: list[str]) -> None:
+        self.source = source
+        self.problems = problems
+        lines = "\n".join(f"  {p}" for p in problems)
+        super().__init__(f"recipe {source} refused by the pre-flight check:\n{lines}")
+
+
 def preflight(args: argparse.Namespace) -> tuple[Any, RecipePlan]:
-    """Load the config and the recipe, and plan it; raise RecipeError listing every violation."""
+    """Load the config and the recipe, and plan it; raise :class:`PreflightRefused` listing every violation."""
     config = load_config(args.config).config
     loaded = load_recipe(args.file)
     plan = plan_recipe(loaded.recipe, config)
     if not plan.ok:
-        raise RecipeError(loaded.source, [f"{loaded.source}: {v} (law {plan.law})" for v in plan.violations])
+        raise PreflightRefused(loaded.source, [f"{loaded.source}: {v} (law {plan.law})" for v in plan.violations])
     return loaded, plan
 
 
 def _check(args: argparse.Namespace) -> int:
     loaded, plan = preflight(args)
+    if args.json:
+        print_json(args, plan_as_data(loaded, plan))
+        return int(ExitCode.OK)
     stdout_console().print(
         f"{loaded.source}: ok — {len(plan.steps)} steps, {hms(plan.total_s)} planned, "
         f"minimum margin {min(s.min_margin_rpm for s in plan.steps):.1f} rpm under {plan.law}",
@@ -84,7 +99,7 @@ def _plan(args: argparse.Namespace) -> int:
     loaded, plan = preflight(args)
     data = plan_as_data(loaded, plan)
     if args.json:
-        print_json(data)
+        print_json(args, data)
         return int(ExitCode.OK)
     from rich.table import Table
 

@@ -1,9 +1,12 @@
 """``millctl recipe run|pause|resume|abort|status``: run recipes in the controller service.
 
-``recipe run`` pre-flights the recipe, connects to the service (starting the
-embedded default service and simulated node in a process of its own when none
-is running), starts the run, and follows it with a progress display on
-stderr and a summary on stdout. The run lives in the service, so closing the
+``recipe run`` pre-flights the recipe, connects to the service, starts the run,
+and follows it with a progress display on stderr and a summary on stdout; it
+names the mill it talks to first. When no service runs it starts one with the
+simulated node in a process of its own only if the configuration's bus is the
+simulated one (``virtual``) or ``--sim`` asks for it: against a real-bus
+configuration it says so and exits 3, so it never reports a run done on a
+simulation while the real mill stood still. The run lives in the service, so closing the
 terminal does not stop it. Ctrl+C once pauses the run now; twice aborts it
 with a controlled stop. A trip or an abort ends with exit code 2.
 """
@@ -18,10 +21,14 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from millctl.api import ControllerState, RecipeProgress, RunState, StatusOut
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.errors import BusError, ExitCode
+
+if TYPE_CHECKING:
+    from millctl.client import Client
 
 POLL_S = 0.5
 """How often the progress display asks the service (s)."""
@@ -36,9 +43,11 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     run = sub.add_parser(
         "run", parents=[socket_opt], help="run a recipe in the service (starts the embedded one if needed)"
     )
-    run.add_argument("file")
+    run.add_argument("file", help="the recipe (TOML)")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument("--detach", action="store_true", help="start the run and return; follow it with `recipe status`")
+    run.add_argument("--sim", action="store_true",
+                     help="with no service running, start a simulated mill even if the config names a real bus")
     run.set_defaults(handler=_run)
     pause = sub.add_parser("pause", parents=[socket_opt], help="pause the running recipe at the next step boundary")
     pause.add_argument("--now", action="store_true", help="pause now, holding the current setpoints")
@@ -46,35 +55,41 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     for name, text in (("resume", "resume a paused or held run"), ("abort", "abort the run: controlled stop")):
         sub.add_parser(name, parents=[socket_opt], help=text).set_defaults(handler=_action, action=name)
     status = sub.add_parser("status", parents=[socket_opt], help="progress of the current or last run")
-    status.add_argument("--json", action="store_true")
+    status.add_argument("--json", action="store_true", help="machine-readable output")
     status.set_defaults(handler=_status)
 
 
-def _client(args: argparse.Namespace, name: str = "recipe") -> Any:
+def _client(args: argparse.Namespace, name: str = "recipe") -> Client:
     from millctl.client import Client
 
     return Client(args.socket, config=args.config, name=name)
 
 
 def _action(args: argparse.Namespace) -> int:
+    from millctl.cli.client_cmd import say_mill
+
     with _client(args) as client, client.control():
+        say_mill(client)
         if args.action == "pause":
             progress = client.recipe_pause(now=args.now)
         elif args.action == "resume":
             progress = client.recipe_resume()
         else:
             progress = client.recipe_abort()
-    stdout_console().print(_line(progress.get("progress") or {}), markup=False)
+    stdout_console().print(_line(progress.progress), markup=False)
     return int(ExitCode.OK)
 
 
 def _status(args: argparse.Namespace) -> int:
+    from millctl.cli.client_cmd import say_mill
+
     with _client(args) as client:
+        say_mill(client)
         result = client.recipe()
     if args.json:
-        print_json(result)
+        print_json(args, result)
     else:
-        progress = result.get("progress")
+        progress = result.progress
         stdout_console().print(_line(progress) if progress else "no recipe has run in this service", markup=False)
     return int(ExitCode.OK)
 
@@ -82,11 +97,12 @@ def _status(args: argparse.Namespace) -> int:
 class _EmbeddedService:
     """A ``millctl serve`` process started for this run, in its own session (Ctrl+C reaches only us)."""
 
-    def __init__(self, args: argparse.Namespace, socket_path: str) -> None:
+    def __init__(self, args: argparse.Namespace, socket_path: str, *, sim: bool) -> None:
         command = [sys.executable, "-m", "millctl"]
         if args.config:
             command += ["--config", args.config]
-        command += ["serve", "--socket", socket_path]
+        command += ["serve", "--socket", socket_path] + (["--sim"] if sim else [])
+        self.socket_path = socket_path
         log_dir = Path(socket_path).parent
         log_dir.mkdir(parents=True, exist_ok=True)
         self.log_path = log_dir / "embedded-service.log"
@@ -95,13 +111,13 @@ class _EmbeddedService:
             command, stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log, start_new_session=True
         )
 
-    def wait_ready(self, client: Any) -> None:
+    def wait_ready(self, client: Client) -> None:
         deadline = time.monotonic() + SERVICE_START_TIMEOUT_S
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
                 raise BusError(f"the embedded service exited with code {self.proc.returncode}; see {self.log_path}")
             with contextlib.suppress(BusError):
-                if client.status()["state"] != "DISCONNECTED":  # the controller has seen the node
+                if client.status().state is not ControllerState.DISCONNECTED:  # the controller has seen the node
                     return
             time.sleep(0.2)
         raise BusError(
@@ -121,7 +137,7 @@ class _EmbeddedService:
 
 def _run(args: argparse.Namespace) -> int:
     from millctl.cli.recipe_cmd import preflight
-    from millctl.client import Client, ServiceUnavailable
+    from millctl.client import Client, ServiceUnavailable, describe_mill
 
     loaded, plan = preflight(args)  # every violation, before anything moves
     client = Client(args.socket, config=args.config, name="recipe")
@@ -132,18 +148,22 @@ def _run(args: argparse.Namespace) -> int:
             client.status()
         except ServiceUnavailable:
             assert client.socket_path is not None
-            err.print(f"no service on {client.socket_path}: starting the embedded service and simulated node")
-            embedded = _EmbeddedService(args, client.socket_path)
+            embedded = _start_simulation(args, client.socket_path, err)
+            if embedded.socket_path != client.socket_path:
+                client.close()
+                client = Client(embedded.socket_path, name="recipe")
             embedded.wait_ready(client)
+        err.print(f"millctl: {describe_mill(client.service())}", markup=False, highlight=False)
         client.take_control()
-        started = client.recipe_run(os.path.abspath(loaded.source))["progress"]
+        started = client.recipe_run(os.path.abspath(loaded.source)).progress
+        assert started is not None  # the service answers a started run with its progress
         err.print(
-            f"run {started['run_id']}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
+            f"run {started.run_id}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
             f"{plan.total_s:.0f} s planned) — Ctrl+C pauses, twice aborts"
         )
         if args.detach:
             stdout_console().print(
-                f"run {started['run_id']} started; follow with `millctl recipe status`", markup=False
+                f"run {started.run_id} started; follow with `millctl recipe status`", markup=False
             )
             return int(ExitCode.OK)
         final = _follow(client)
@@ -154,6 +174,27 @@ def _run(args: argparse.Namespace) -> int:
         if embedded is not None:
             embedded.stop()
     return _summary(args, final)
+
+
+def _start_simulation(args: argparse.Namespace, socket_path: str, err: Any) -> _EmbeddedService:
+    """Start a simulated mill for this run, only if the config's bus is the simulated one or ``--sim`` asks."""
+    from millctl.config import load_config
+
+    bus = load_config(args.config).config.bus
+    real = bus.interface != "virtual"
+    if real and not args.sim:
+        raise BusError(
+            f"no service on {socket_path}, and the configuration names a real bus ({bus.interface}:"
+            f"{bus.channel}): not starting a simulated mill in its place. Start the service (`millctl serve`, or "
+            "its systemd unit: docs/deployment.md), pass --socket, or --sim for a simulation"
+        )
+    if real:  # --sim against a real-bus config: the simulation gets a socket of its own, never the real mill's
+        from millctl.config.paths import runtime_dir
+
+        socket_path = str(runtime_dir() / f"millctl-sim-{os.getpid()}.sock")
+    err.print(f"no service on {socket_path}: starting a SIMULATED mill (embedded service and simulated node)",
+              markup=False)
+    return _EmbeddedService(args, socket_path, sim=real)
 
 
 class _Interrupts:
@@ -173,7 +214,7 @@ class _Interrupts:
         self.count += 1
 
 
-def _follow(client: Any) -> dict[str, Any]:
+def _follow(client: Client) -> RecipeProgress:
     """Show progress until the run ends; Ctrl+C once pauses now, twice aborts."""
     from rich.live import Live
 
@@ -181,6 +222,7 @@ def _follow(client: Any) -> dict[str, Any]:
 
     acted = 0
     last_renew = time.monotonic()
+    clock = _StopClock()
     with _Interrupts() as interrupts, Live(console=stderr_console(), refresh_per_second=4) as live:
         while True:
             if interrupts.count > acted:
@@ -194,9 +236,11 @@ def _follow(client: Any) -> dict[str, Any]:
                         live.console.print("[red]aborting[/]: controlled stop")
                 except ServiceRefused as refused:  # e.g. already paused by a pause step, or already stopping
                     live.console.print(f"[yellow]{refused}[/]")
-            progress: dict[str, Any] = client.recipe()["progress"] or {}
-            live.update(_panel(progress, client.status()))
-            if progress.get("state") in ("DONE", "ABORTED", "FAILED"):
+            progress = client.recipe().progress
+            if progress is None:
+                raise BusError("the service has no recipe run: was it restarted?")
+            live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
+            if progress.state.final:
                 return progress
             if time.monotonic() - last_renew > LEASE_RENEW_S:
                 client.take_control()
@@ -204,50 +248,85 @@ def _follow(client: Any) -> dict[str, Any]:
             time.sleep(POLL_S)
 
 
-def _panel(progress: dict[str, Any], status: dict[str, Any]) -> Any:
+class _StopClock:
+    """Counts the final stop down: the service reports its planned duration while STOPPING, not the time left."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+
+    def remaining_s(self, progress: RecipeProgress) -> float | None:
+        """Time left (s): the service's, or while STOPPING its stop duration minus the time spent stopping."""
+        if progress.state is not RunState.STOPPING:
+            self.since = None
+            return progress.remaining_s
+        now = time.monotonic()
+        if self.since is None:
+            self.since = now
+        return None if progress.remaining_s is None else max(progress.remaining_s - (now - self.since), 0.0)
+
+
+def _panel(progress: RecipeProgress, status: StatusOut, remaining_s: float | None) -> Any:
+    from rich.progress_bar import ProgressBar
     from rich.table import Table
 
+    elapsed = progress.elapsed_s or 0.0
+    total = elapsed + (remaining_s or 0.0)
     grid = Table.grid(padding=(0, 2))
-    grid.add_row("run", _line(progress))
-    limit = status.get("limit_rotary_rpm")
-    measured_r, measured_v = status.get("measured_rotary_rpm"), status.get("measured_vibration_rpm")
+    grid.add_row("run", f"{progress.recipe}  {progress.state}" + (f" — {progress.reason}" if progress.reason else ""))
+    grid.add_row("", ProgressBar(total=max(total, 1e-9), completed=elapsed, width=40))
+    grid.add_row("", f"{_step(progress)}   elapsed {hms(elapsed)}   remaining {_hms(remaining_s)}")
+    s = status
     grid.add_row(
         "speeds",
-        f"ω_r {status.get('setpoint_rotary_rpm', 0):.1f} rpm (measured {_num(measured_r)}), "
-        f"limit {_num(limit)} rpm; ω_v {status.get('setpoint_vibration_rpm', 0):.1f} rpm (measured {_num(measured_v)})",
+        f"ω_r {_num(s.setpoint_rotary_rpm)} rpm (measured {_num(s.measured_rotary_rpm)}), "
+        f"limit {_num(s.limit_rotary_rpm)} rpm; ω_v {_num(s.setpoint_vibration_rpm)} rpm "
+        f"(measured {_num(s.measured_vibration_rpm)})",
     )
-    grid.add_row(
-        "furnace", f"{_num(status.get('furnace_temp_c'))} °C (setpoint {_num(status.get('furnace_setpoint_c'))})"
-    )
-    grid.add_row("state", f"{status.get('state')} {status.get('trip_cause') or ''}")
+    grid.add_row("furnace", f"{_num(s.furnace_temp_c)} °C (setpoint {_num(s.furnace_setpoint_c)})")
+    grid.add_row("state", f"{s.state} {s.trip_cause}")
     return grid
 
 
-def _num(value: Any) -> str:
+def _num(value: float | None) -> str:
     return "—" if value is None else f"{value:.1f}"
 
 
-def _line(progress: dict[str, Any]) -> str:
-    if not progress:
+def _hms(seconds: float | None) -> str:
+    return "—" if seconds is None else hms(seconds)
+
+
+def _step(progress: RecipeProgress) -> str:
+    """``step 2/4 (hold)``; after the last step, the final stop or the end, never ``(None)``."""
+    if progress.kind is not None:
+        return f"step {progress.step}/{progress.steps} ({progress.kind})"
+    if progress.state is RunState.STOPPING:
+        return f"steps {progress.steps}/{progress.steps} done, stopping"
+    return f"step {progress.step}/{progress.steps}"
+
+
+def _line(progress: RecipeProgress | None) -> str:
+    if progress is None:
         return "no run"
     return (
-        f"{progress.get('state')} step {progress.get('step')}/{progress.get('steps')} ({progress.get('kind')}), "
-        f"elapsed {hms(progress.get('elapsed_s', 0.0))}, remaining ≈ {hms(progress.get('remaining_s', 0.0))}"
-        + (f" — {progress['reason']}" if progress.get("reason") else "")
+        f"{progress.state} {_step(progress)}, elapsed {_hms(progress.elapsed_s)}, "
+        f"remaining ≈ {_hms(progress.remaining_s)}" + (f" — {progress.reason}" if progress.reason else "")
     )
 
 
-def _summary(args: argparse.Namespace, final: dict[str, Any]) -> int:
-    ok = final.get("state") == "DONE"
+def _summary(args: argparse.Namespace, final: RecipeProgress) -> int:
+    ok = final.state is RunState.DONE
     if args.json:
-        print_json(final)
+        error = None if ok else {"code": f"run_{final.state.lower()}", "exit_code": int(ExitCode.INTERLOCK),
+                                 "message": f"recipe run {final.run_id} {final.state}: {final.reason or ''}"}
+        print_json(args, final, error)
     else:
         out = stdout_console()
-        out.print(f"recipe {final.get('recipe')!s}: {final.get('state')}", markup=False)
-        out.print(f"  run id   {final.get('run_id')}", markup=False)
-        out.print(f"  steps    {final.get('step')}/{final.get('steps')}", markup=False)
-        out.print(f"  elapsed  {hms(final.get('elapsed_s', 0.0))}", markup=False)
-        if final.get("reason"):
-            out.print(f"  reason   {final.get('reason')}", markup=False)
-        out.print(f"  record   {final.get('record')}", markup=False)
+        out.print(f"recipe {final.recipe}: {final.state}", markup=False)
+        out.print(f"  run id   {final.run_id}", markup=False)
+        out.print(f"  steps    {final.step}/{final.steps}", markup=False)
+        out.print(f"  elapsed  {_hms(final.elapsed_s)}", markup=False)
+        if final.reason:
+            out.print(f"  reason   {final.reason}", markup=False)
+        out.print(f"  record   {final.record}", markup=False)
+        out.print(f"  report   millctl report {final.record}", markup=False)
     return int(ExitCode.OK) if ok else int(ExitCode.INTERLOCK)

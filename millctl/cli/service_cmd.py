@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from millctl.cli.output import stderr_console
+from millctl.config.loader import LoadedConfig
+
+if TYPE_CHECKING:
+    from millctl.api import ServiceOut
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -15,29 +22,54 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="run the controller service: the control loop, its API on a Unix socket, and the records",
         description=(
             "Run the controller on the configured bus (with the embedded simulated node on the 'virtual' bus), "
-            "serve the local API on a Unix socket (service.socket_path, mode service.socket_mode), and record "
-            "every event to <records_dir>/events.jsonl and every frame to <records_dir>/bus/. SIGTERM or Ctrl+C "
-            "stops the mill in a controlled way and exits 0. A second serve on the same socket exits 3."
+            "serve the local API on a Unix socket (service.socket_path, mode service.socket_mode; by default "
+            "$XDG_RUNTIME_DIR/millctl/millctl.sock, or /run/millctl under systemd), and record every event to "
+            "<records_dir>/events.jsonl and every frame to <records_dir>/bus/ (by default "
+            "$XDG_STATE_HOME/millctl/records, or /var/lib/millctl/records under systemd). SIGTERM or Ctrl+C "
+            "stops the mill in a controlled way and exits 0. A second serve on the same socket exits 3. "
+            "See docs/deployment.md."
         ),
     )
     parser.add_argument("--socket", metavar="PATH", help="Unix socket to serve on (default: service.socket_path)")
+    parser.add_argument(
+        "--sim", action="store_true",
+        help="serve a simulated mill (virtual bus, embedded node) whatever bus the config names; "
+             "its records go to <records_dir>-sim",
+    )
     parser.set_defaults(handler=_serve)
 
 
+def simulated(loaded: LoadedConfig) -> LoadedConfig:
+    """The configuration with a private virtual bus and the embedded node; records beside the real ones (-sim)."""
+    from millctl.config.models import Bus
+    from millctl.config.paths import service_paths
+
+    config = loaded.config
+    records = service_paths(loaded).records_dir
+    sim = config.model_copy(update={
+        "bus": Bus(interface="virtual", channel=f"millctl-sim-{os.getpid()}"),
+        "service": config.service.model_copy(update={"records_dir": f"{records}-sim", "tcp_port": 0}),
+    })
+    return dataclasses.replace(loaded, config=sim, source=f"{loaded.source} (--sim)")
+
+
 def _serve(args: argparse.Namespace) -> int:
+    from millctl.client import describe_mill
     from millctl.config import load_config
     from millctl.service import serve
 
     loaded = load_config(args.config)
+    if args.sim:
+        loaded = simulated(loaded)
     console = stderr_console()
     service = loaded.config.service
 
-    def ready(path: Path) -> None:
+    def ready(path: Path, described: ServiceOut) -> None:
         tcp = f", TCP 127.0.0.1:{service.tcp_port} (token)" if service.tcp_port else ""
         console.print(
-            f"millctl serve: {loaded.config.bus.interface}:{loaded.config.bus.channel}, socket {path}{tcp}, "
-            f"records {service.records_dir}; Ctrl+C stops the mill and exits",
-            markup=False,
+            f"millctl serve: {describe_mill(described)}{tcp}, records {described.records_dir}; "
+            "Ctrl+C stops the mill and exits",
+            markup=False, highlight=False,
         )
 
     code = serve(loaded, args.socket, on_ready=ready)
@@ -45,4 +77,4 @@ def _serve(args: argparse.Namespace) -> int:
     return code
 
 
-__all__ = ["register"]
+__all__ = ["register", "simulated"]

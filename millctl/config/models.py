@@ -204,7 +204,9 @@ class Interlock(_Strict):
     min_stale_s: Annotated[float, Field(gt=0.0, le=60.0)] = 1.0
     """A node frame is stale after max(stale_periods × its period, min_stale_s)."""
     e2e_error_limit: Annotated[int, Field(ge=1, le=100)] = 5
-    """Net E2E error score that faults a link."""
+    """Net E2E error score, and sequence score, that fault a link."""
+    e2e_sequence_decay_frames: Annotated[int, Field(ge=1, le=1000)] = 16
+    """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
     startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
     """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
 
@@ -217,6 +219,8 @@ class Timing(_Strict):
     node_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     controller_tick_s: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
     setpoint_period_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.1
+    challenge_lifetime_s: Annotated[float, Field(gt=0.0, le=10.0)] = 0.5
+    """How long a NodeStatus challenge may be echoed by a heartbeat (s): bounds what a replay can feed."""
 
     @model_validator(mode="after")
     def _watchdog_after_heartbeat(self) -> Timing:
@@ -224,6 +228,12 @@ class Timing(_Strict):
             raise ValueError(
                 f"watchdog_timeout_s = {self.watchdog_timeout_s} must be ≥ 2 × heartbeat_period_s "
                 f"= {2.0 * self.heartbeat_period_s}: one lost heartbeat must not trip"
+            )
+        if self.challenge_lifetime_s < self.watchdog_timeout_s:
+            raise ValueError(
+                f"challenge_lifetime_s = {self.challenge_lifetime_s} must be ≥ watchdog_timeout_s "
+                f"= {self.watchdog_timeout_s}: a few lost NodeStatus frames must not starve the watchdog "
+                "(docs/protocol.md, heartbeat freshness)"
             )
         return self
 
@@ -248,16 +258,32 @@ class Bus(_Strict):
 
 
 class Service(_Strict):
-    """Where the controller service listens and writes its records."""
+    """Where the controller service listens and writes its records (empty paths: by convention).
 
-    socket_path: str = "var/millctl.sock"
+    See :mod:`millctl.config.paths` and docs/deployment.md.
+    """
+
+    socket_path: str = ""
     socket_mode: Annotated[int, Field(ge=0o600, le=0o660)] = 0o600
+    """The socket's permission bits: 0600 (the service's user) or 0660 (and its group); never others'."""
     tcp_port: Annotated[int, Field(ge=0, le=65_535)] = 0
     """Loopback TCP port; 0 disables TCP. TCP needs ``token_file``."""
     token_file: str = ""
-    records_dir: str = "var/records"
+    records_dir: str = ""
     rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
     keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+    max_request_bytes: Annotated[int, Field(ge=4_096, le=64 << 20)] = 1 << 20
+    """Largest request body the API reads (bytes); a larger one is refused with 413 unread."""
+
+    @field_validator("socket_mode")
+    @classmethod
+    def _socket_mode_private(cls, value: int) -> int:
+        if value & 0o600 != 0o600 or value & ~0o660:
+            raise ValueError(
+                f"socket_mode = 0o{value:o}: use 0o600 (the service's user) or 0o660 (and its group); the owner "
+                "needs rw, no permission for others, no execute bits (docs/deployment.md#permissions)"
+            )
+        return value
 
 
 class MillConfig(_Strict):

@@ -440,7 +440,8 @@ class Controller:
 
     def _transmit(self, now: float) -> None:
         if now >= self._next_heartbeat_s:
-            self._send(Heartbeat(_WIRE_STATE[self.state]))
+            node = self.node_status  # echo its latest challenge: the node's proof this heartbeat is live
+            self._send(Heartbeat(_WIRE_STATE[self.state], node.challenge if node is not None else 0))
             self._next_heartbeat_s = max(self._next_heartbeat_s + self.config.timing.heartbeat_period_s, now)
         if now >= self._next_setpoints_s:
             self._next_setpoints_s = max(self._next_setpoints_s + self.config.timing.setpoint_period_s, now)

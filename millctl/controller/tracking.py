@@ -58,7 +58,15 @@ class TelemetryTracker:
         self.tracks: dict[type[MillMessage], Track] = {}
         for kind in TRACKED:
             period = codec.cycle_time_s(kind) or 1.0
-            receiver = E2EReceiver(error_limit=interlock.e2e_error_limit, name=kind.__name__) if kind.E2E else None
+            receiver = (
+                E2EReceiver(
+                    error_limit=interlock.e2e_error_limit,
+                    name=kind.__name__,
+                    sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+                )
+                if kind.E2E
+                else None
+            )
             bound = max(interlock.stale_periods * period, interlock.min_stale_s)
             self.tracks[kind] = Track(kind, bound, receiver)
         self.startup_grace_s = interlock.startup_grace_s
@@ -108,11 +116,8 @@ class TelemetryTracker:
 
     def link_faults(self) -> list[str]:
         """Why a link is faulted by E2E errors (empty when healthy)."""
-        return [
-            f"{t.kind.__name__} E2E error score {t.receiver.score} ≥ limit {t.receiver.error_limit}"
-            for t in self.tracks.values()
-            if t.receiver is not None and t.receiver.faulted
-        ]
+        reasons = (t.receiver.fault_reason() for t in self.tracks.values() if t.receiver is not None)
+        return [reason for reason in reasons if reason is not None]
 
     def reset_links(self) -> None:
         """Forget E2E history (after an explicit reset)."""
@@ -132,6 +137,7 @@ class TelemetryTracker:
                 "frames": track.frames,
                 "e2e": dict(track.counts),
                 "e2e_score": track.receiver.score if track.receiver else 0,
+                "e2e_sequence_score": track.receiver.sequence_score if track.receiver else 0,
             }
         return result
 

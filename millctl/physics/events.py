@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import brentq
 
-from millctl.physics.flight import FlightState, RodState, WallState, departure_wall_gap
+from millctl.physics.flight import FlightState, RodState, WallState, departure_wall_gap, zero_length_departure
 from millctl.physics.model import Scene
 
 WALL = -1
@@ -157,7 +157,11 @@ def first_contact_time(
         def sign_sep(t: float) -> float:
             return departure_wall_gap(scene, flight, n_d_m2_s2, t - flight.t0_s)
 
-    if sign_sep(t_start_s) <= 0.0:
+    if departing:
+        assert isinstance(a, FlightState)
+        if zero_length_departure(scene, a, n_d_m2_s2):
+            return t_start_s
+    elif sign_sep(t_start_s) <= 0.0:
         return t_start_s
     h = scan_step_s(scene)
     accel = 2.0 * _accel_bound(scene)
@@ -271,8 +275,13 @@ def earliest_contact(
     s0, ds0, _ = pair_arrays(np.array([t_start_s]))
     s_prev, ds_prev = s0[:, 0], ds0[:, 0]
     for idx, (i, j) in enumerate(pairs):
-        value = funcs[idx][0](t_start_s - t_ref[idx]) if funcs[idx][0] is not funcs[idx][1] else s_prev[idx]
-        if value <= 0.0:
+        if funcs[idx][0] is not funcs[idx][1]:  # a rod departing at t_start: the zero-length rule
+            state = states[i]
+            assert isinstance(state, FlightState)
+            touching = zero_length_departure(scene, state, n_d.get(i, 0.0))
+        else:
+            touching = s_prev[idx] <= 0.0
+        if touching:
             return contact_kinematics(scene, states, i, j, t_start_s, t_start_s - t_ref[idx])
     t_prev = t_start_s
     while t_prev < t_end_s:

@@ -139,4 +139,38 @@ def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, tau_
     return -(n_d_m2_s2 + tau * reduced)
 
 
-__all__ = ["FlightState", "RodState", "WallState", "depart", "departure_wall_gap"]
+ZERO_FLIGHT_RTOL = 1e-12
+"""A departure whose reduced wall gap at τ = 0 is ≤ this × its scale is a zero-length flight (docs/model.md)."""
+
+
+def departure_gap_scale(scene: Scene, n_d_m2_s2: float) -> float:
+    """The size of the terms of :func:`departure_wall_gap` at τ = 0 (its units: m²/s³ when n_d = 0, else m²/s²)."""
+    m = scene.model
+    w_r, w_v, r_d, g, r0 = scene.omega_r_rad_s, scene.omega_v_rad_s, m.eccentricity_m, m.g_m_s2, m.r0_m
+    if n_d_m2_s2 == 0.0:
+        return 2.0 * r0 * (r_d * w_v**3 + (g + r_d * w_v * w_v) * w_r)
+    return r0 * (r0 * w_r * w_r + g + r_d * w_v * w_v)
+
+
+def zero_length_departure(scene: Scene, flight: FlightState, n_d_m2_s2: float) -> bool:
+    """True when the free path of a rod leaving the wall does not leave it: no flight, no impact.
+
+    The wall gap with the departure root divided out, at the departure instant, is
+    its leading coefficient; ≤ ``ZERO_FLIGHT_RTOL`` × its scale (rounding level or
+    below) means the rod would enter the wall at once (the paper's detachment where
+    the true N > 0, or N touching zero with zero slope). Every engine applies this one rule.
+    """
+    gap = departure_wall_gap(scene, flight, n_d_m2_s2, 0.0)
+    return gap <= ZERO_FLIGHT_RTOL * departure_gap_scale(scene, n_d_m2_s2)
+
+
+__all__ = [
+    "ZERO_FLIGHT_RTOL",
+    "FlightState",
+    "RodState",
+    "WallState",
+    "depart",
+    "departure_gap_scale",
+    "departure_wall_gap",
+    "zero_length_departure",
+]

@@ -7,7 +7,8 @@ exact detachment time, which is the first contact (rod–wall or rod–rod)?
 =============== ==================================================== ============
 method          scheme                                                knob
 =============== ==================================================== ============
-``exact``       bracket + brentq in vial-centred coordinates          ``tol`` (s)
+``exact``       bracket + brentq, compiled (:mod:`.kernels`)          ``tol`` (s)
+``exact-reference`` the same in numpy/scipy (:mod:`.simulate`)         ``tol`` (s)
 ``legacy``      paper: fixed dt, end-point check, averaging; circle   ``dt`` (s)
 ``legacy-interp`` as ``legacy``, time by linear interpolation          ``dt`` (s)
 ``legacy-arcs`` paper: fixed dt, wall as q arcs (eqs 15–17)           ``dt``, ``q``
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from millctl.errors import PhysicsInputError
+from millctl.physics import kernels
 from millctl.physics.events import ContactRow
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.ivp import ivp_first_contact
@@ -32,8 +34,8 @@ from millctl.physics.legacy import legacy_first_contact
 from millctl.physics.model import Scene
 from millctl.physics.simulate import simulate
 
-Method = Literal["exact", "legacy", "legacy-interp", "legacy-arcs", "ivp"]
-METHODS: tuple[Method, ...] = ("exact", "legacy", "legacy-interp", "legacy-arcs", "ivp")
+Method = Literal["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp"]
+METHODS: tuple[Method, ...] = ("exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp")
 
 
 @dataclass(frozen=True)
@@ -91,6 +93,8 @@ def first_impact(
     ``dt``: legacy step (s), required for the legacy methods. ``q``: arcs of ``legacy-arcs`` (default 360).
     """
     if method == "exact":
+        return _compiled(scene, tol or 0.0, t_end_s)
+    if method == "exact-reference":
         result = simulate(scene, t_end_s, stop_after_first=True, tol_s=tol or 0.0)
         if len(result.impacts) == 0:
             return None
@@ -118,6 +122,26 @@ def first_impact(
         row = legacy_first_contact(scene, dt, arcs, t_end_s, interpolate=method == "legacy-interp")
         return None if row is None else _event(scene, method, row)
     raise PhysicsInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+
+
+def _compiled(scene: Scene, tol_s: float, t_end_s: float) -> ImpactEvent | None:
+    """The compiled kernel's first impact (every rod detaching at its own time)."""
+    row = kernels.first_impacts(kernels.scene_row(scene)[None, :], rods="all", horizon_s=t_end_s, tol_s=tol_s)[0]
+    col = kernels.OUT.index
+    if row[col("found")] != 1.0:
+        return None
+    return ImpactEvent(
+        float(row[col("time_s")]),
+        int(row[col("rod")]),
+        int(row[col("partner")]),
+        float(row[col("x_m")]),
+        float(row[col("y_m")]),
+        float(row[col("normal_velocity_m_s")]),
+        float(row[col("speed_abs_m_s")]),
+        float(row[col("energy_j")]),
+        "exact",
+        float(row[col("tangential_velocity_m_s")]),
+    )
 
 
 def wall_angle_rad(scene: Scene, event: ImpactEvent) -> float:

@@ -75,6 +75,8 @@ class _Run:
     n_d: dict[int, float] = field(default_factory=dict)
     excluded: set[tuple[int, int]] = field(default_factory=set)
     bounces: dict[int, int] = field(default_factory=dict)
+    unsupported: set[int] = field(default_factory=set)
+    """Rods whose next detachment is at the start of their search with N < 0 (not a falling zero)."""
     impacts: list[tuple[float, ...]] = field(default_factory=list)
     detachments: list[tuple[float, ...]] = field(default_factory=list)
 
@@ -97,7 +99,7 @@ def _repin(run: _Run, rod: int, t_s: float, rearm: bool) -> None:
     run.n_d.pop(rod, None)
     run.bounces.pop(rod, None)
     for j in range(len(run.states)):
-        if j != rod and _still_touching(run, (min(rod, j), max(rod, j)), t_s):
+        if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s):
             run.excluded.add((min(rod, j), max(rod, j)))
     _schedule(run, rod, t_s, rearm)
 
@@ -108,6 +110,10 @@ def _schedule(run: _Run, rod: int, t_s: float, rearm: bool = False) -> None:
     theta_at_zero = s.theta0_rad - run.scene.omega_r_rad_s * s.t0_s
     det = find_detachment(run.scene, theta_at_zero, t_s, run.t_end_s, rearm=rearm)
     run.next_detach[rod] = det.time_s if det.detached else math.inf
+    if det.detached and det.at_start:
+        run.unsupported.add(rod)
+    else:
+        run.unsupported.discard(rod)
 
 
 def _depart(run: _Run, rod: int, t_s: float) -> None:
@@ -117,8 +123,11 @@ def _depart(run: _Run, rod: int, t_s: float) -> None:
     theta = math.atan2(flight.y0_m, flight.x0_m)
     run.states[rod] = flight
     run.next_detach[rod] = math.inf
-    exact = scene.model.variant is ModelVariant.CORRECTED and true_normal_force_per_mass(scene, t_s, theta) >= 0.0
+    # corrected, at a falling zero of N: N(t_d) = 0 by construction, the departure root is triple (n_d = 0
+    # exactly, whatever the root finder's residual); a rod that starts unsupported or the paper's law: r0·N_true/m
+    exact = scene.model.variant is ModelVariant.CORRECTED and rod not in run.unsupported
     run.n_d[rod] = 0.0 if exact else scene.model.r0_m * true_normal_force_per_mass(scene, t_s, theta)
+    run.unsupported.discard(rod)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi)
     run.detachments.append((t_s, rod, theta, alpha))
 
@@ -170,21 +179,20 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         rod = run.next_detach.index(t_det)
         _depart(run, rod, t_det)
         return t_det
+    zero_length = contact.partner == WALL and contact.flight_time_s == 0.0
+    if not zero_length:
+        _record(run, contact)
+        if stop_after_first:
+            return None  # nothing after the first impact is needed: no re-scheduling
     if contact.partner == WALL:
-        zero_length = contact.flight_time_s == 0.0
-        if not zero_length:
-            _record(run, contact)
         _repin(run, contact.rod, contact.time_s, rearm=zero_length)
     else:
-        _record(run, contact)
         run.bounces[contact.rod] = run.bounces.get(contact.rod, 0) + 1
         settle = SETTLE_SPEED_FACTOR * math.sqrt(scene.model.g_m_s2 * scene.model.rod_radius_m)
         if contact.normal_velocity_m_s < settle or run.bounces[contact.rod] > MAX_BOUNCES:
             _repin(run, contact.rod, contact.time_s, rearm=False)
         else:
             _bounce(run, contact)
-    if stop_after_first and run.impacts:
-        return None
     return contact.time_s
 
 
@@ -211,6 +219,18 @@ def simulate(
     return SimulationResult(
         np.array(run.impacts, dtype=IMPACT_DTYPE), np.array(run.detachments, dtype=DETACHMENT_DTYPE), t_end_s
     )
+
+
+def _overlapping(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
+    """Centres no further apart than the contact distance (a re-pinned rod resting on a neighbour).
+
+    Only such pairs are excluded when a rod is put back on the wall: two rods that merely
+    ride side by side on the wall are neither apart-and-separating nor touching, and must
+    stay in the contact search once one of them flies.
+    """
+    xa, ya, _, _ = run.states[pair[0]].rel(run.scene, t_s)
+    xb, yb, _, _ = run.states[pair[1]].rel(run.scene, t_s)
+    return (xa - xb) ** 2 + (ya - yb) ** 2 <= run.scene.model.contact_distance_m**2
 
 
 def _still_touching(run: _Run, pair: tuple[int, int], t_s: float) -> bool:

@@ -19,7 +19,11 @@ too). From the K samples:
 * ``mean_impact_energy_j``: corrected ½ m_eff (1 − e²) v_n²; paper eq. 19 ½ m |v|²;
 * ``impact_power_w`` = rate × mean energy;
 * ``mean_shear_pa``: eq. 25, μ·p_av, averaged over the pinned arc (corrected,
-  N = m(r0 ω_r² − g sin θ) ≥ 0 at 16 angles) or at the paper's N_c = m ω_r² r0.
+  N = m(r0 ω_r² − g sin θ) ≥ 0 at 16 angles) or at the paper's N_c = m ω_r² r0;
+* ``no_slip_violated``: in some sample the carried rod needs a wall traction
+  |F_t| > μN before it detaches (or within the revolution when it stays pinned),
+  :func:`~millctl.physics.slip.no_slip_check`; ``slip_onset_theta_rad`` is the
+  circular mean of where that starts.
 
 Cost: milliseconds per call, roughly K times one exact detachment-and-flight
 search, less where no phase can detach and more at a few rpm, where the rod
@@ -49,6 +53,7 @@ from millctl.physics.flight import RodState, WallState, depart
 from millctl.physics.impact import impact_energy_j, impact_rate_hz, wall_shear_pa
 from millctl.physics.kinematics import normal_force_per_mass, true_normal_force_per_mass
 from millctl.physics.model import MillModel, Scene
+from millctl.physics.slip import NoSlipCheck, no_slip_check
 from millctl.units import rpm_to_rad_s
 
 MIN_OMEGA_R_RAD_S = 2.0 * math.pi / 60.0
@@ -78,10 +83,24 @@ class RevolutionSummary:
     mean_flight_time_s: float = math.nan
     wall_impact_fraction: float = math.nan
     """Share of impacts on the wall (the rest hit another rod)."""
+    no_slip_violated: bool = False
+    """The paper's no-slip carriage needs more wall friction than μN somewhere (docs/model.md, slip)."""
+    slip_onset_theta_rad: float = math.nan
+    """Where that first happens on the carried arc (circular mean over the samples), nan when it never does."""
 
 
-def _pinned(model: MillModel, omega_r: float, shear_pa: float) -> RevolutionSummary:
-    return RevolutionSummary(False, math.nan, 0.0, 0.0, 0.0, shear_pa, 0.0, 0.0, math.nan, math.nan)
+def _pinned(shear_pa: float, checks: list[NoSlipCheck] | None = None) -> RevolutionSummary:
+    violated, onset = _slip_flag(checks or [])
+    return RevolutionSummary(False, math.nan, 0.0, 0.0, 0.0, shear_pa, 0.0, 0.0, math.nan, math.nan, violated, onset)
+
+
+def _circular_mean(angles: list[float]) -> float:
+    return math.atan2(sum(math.sin(a) for a in angles), sum(math.cos(a) for a in angles)) if angles else math.nan
+
+
+def _slip_flag(checks: list[NoSlipCheck]) -> tuple[bool, float]:
+    onsets = [c.onset_theta_rad for c in checks if c.violated]
+    return bool(onsets), _circular_mean(onsets)
 
 
 def _mean_shear_pa(model: MillModel, omega_r: float) -> float:
@@ -109,12 +128,30 @@ def _start_angle_rad(model: MillModel, omega_r: float, omega_v: float) -> float 
     return math.asin(a / g_max) - 1e-9
 
 
-def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
-    """One cam phase: (θ_d, energy J, cycles per revolution, flight s, hit the wall) or None if pinned."""
+def _carriage_from_bottom(scene: Scene, arc_end_s: float) -> NoSlipCheck:
+    """The no-slip check of the sampled rod over its whole carried arc, from the bottom (θ = −π/2) on.
+
+    The sample starts higher up (where it could first detach); the same ride from the
+    bottom has the cam phase shifted back by ω_v·Δt, Δt = (θ_start + π/2)/ω_r.
+    """
+    lead_s = (scene.theta0_rad + 0.5 * math.pi) / scene.omega_r_rad_s
+    bottom = Scene(
+        scene.model,
+        scene.omega_r_rad_s,
+        scene.omega_v_rad_s,
+        -0.5 * math.pi,
+        scene.alpha0_rad - scene.omega_v_rad_s * lead_s,
+    )
+    return no_slip_check(bottom, arc_end_s=arc_end_s + lead_s)
+
+
+def _sample(scene: Scene) -> tuple[tuple[float, float, float, float, bool] | None, NoSlipCheck]:
+    """One cam phase: (θ_d, energy J, cycles per revolution, flight s, hit the wall) or None if pinned; slip check."""
     model = scene.model
     det = find_detachment(scene)
+    check = _carriage_from_bottom(scene, det.time_s if det.detached else det.horizon_s)
     if not det.detached:
-        return None
+        return None, check
     wall0 = WallState(0.0, scene.theta0_rad)
     flight = depart(scene, wall0, det.time_s)
     states: list[RodState] = [flight]
@@ -124,7 +161,7 @@ def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
         n_d = model.r0_m * true_normal_force_per_mass(scene, det.time_s, det.theta_rad)
     contact = earliest_contact(scene, states, det.time_s, det.time_s + _FLIGHT_CAP_S, {0: n_d}, rods=[0])
     if contact is None:
-        return None
+        return None, check
     t_f = contact.flight_time_s  # the root in the flight's own clock: no cancellation of t_contact − t_d
     _, _, vx, vy = flight.rel(scene, contact.time_s)
     vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
@@ -138,7 +175,7 @@ def _sample(scene: Scene) -> tuple[float, float, float, float, bool] | None:
         per_rev = 2.0 * math.pi / (scene.omega_r_rad_s * cycle_s) if cycle_s > 0.0 else 1.0
     else:
         per_rev = 1.0
-    return det.theta_rad, energy, per_rev, t_f, on_wall
+    return (det.theta_rad, energy, per_rev, t_f, on_wall), check
 
 
 def revolution_summary(
@@ -154,22 +191,26 @@ def revolution_summary(
         raise PhysicsInputError(f"cam_phases = {cam_phases} must be ≥ 1")
     w_r, w_v = abs(omega_r_rad_s), abs(omega_v_rad_s)
     if w_r < MIN_OMEGA_R_RAD_S:
-        return _pinned(model, w_r, 0.0)
+        return _pinned(0.0)
     shear = _mean_shear_pa(model, w_r)
     theta_start = _start_angle_rad(model, w_r, w_v)
-    if theta_start is None:
-        return _pinned(model, w_r, shear)
+    if theta_start is None:  # pinned at every phase: check the carriage over a revolution from the bottom
+        bottom = [Scene(model, w_r, w_v, -0.5 * math.pi, 2.0 * math.pi * k / cam_phases) for k in range(cam_phases)]
+        return _pinned(shear, [no_slip_check(s, horizon_s=2.0 * math.pi / w_r) for s in bottom])
     samples = []
+    checks = []
     for k in range(cam_phases):
         scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / cam_phases)
-        result = _sample(scene)
+        result, check = _sample(scene)
+        checks.append(check)
         if result is not None:
             samples.append(result)
     if not samples:
-        return _pinned(model, w_r, shear)
+        return _pinned(shear, checks)
     count = len(samples)
     fraction = count / cam_phases
-    theta_d = math.atan2(sum(math.sin(s[0]) for s in samples), sum(math.cos(s[0]) for s in samples))
+    theta_d = _circular_mean([s[0] for s in samples])
+    violated, onset = _slip_flag(checks)
     p = fraction * sum(s[2] for s in samples) / count
     rate = impact_rate_hz(model, p, w_r)
     energy = sum(s[1] for s in samples) / count
@@ -184,6 +225,8 @@ def revolution_summary(
         collisions_per_rod_rev=p,
         mean_flight_time_s=sum(s[3] for s in samples) / count,
         wall_impact_fraction=sum(1.0 for s in samples if s[4]) / count,
+        no_slip_violated=violated,
+        slip_onset_theta_rad=onset,
     )
 
 

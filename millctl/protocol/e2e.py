@@ -11,10 +11,23 @@ byte, as profile 1's "both bytes" mode) and then the payload without the CRC
 byte, so a frame that arrives under a wrong identifier fails its CRC.
 
 A receiver keeps one :class:`E2EReceiver` per message: it classifies every
-frame and keeps a net error score (+1 per error, −1 per good frame, never
-below 0); the link is faulted while the score is at or above the limit
-(``interlock.e2e_error_limit``). Only ``OK`` and ``OK_SOME_LOST`` frames are
-fresh; a repeated or out-of-sequence counter never counts as a heartbeat.
+frame and keeps two scores; the link is faulted while either is at or above
+the limit (``interlock.e2e_error_limit``):
+
+- the **net error score**: +1 per error of any kind, −1 per ``OK`` frame,
+  never below 0. It tolerates a noisy link (occasional bad CRCs).
+- the **sequence score** (SAFETY.md item 17): +1 per ``REPEATED`` or
+  ``WRONG_SEQUENCE`` frame, and only −1 per ``sequence_decay_frames`` fresh
+  frames. A repeated or out-of-sequence counter with a good CRC is what a
+  second sender on the identifier (or a replay) produces, and that sender's
+  own frames arrive as ``OK``: under the net score alone, answering every
+  genuine frame with counter + 1 keeps the score level (genuine ``REPEATED``
+  +1, spoof ``OK`` −1) for ever. Good frames do not pay for sequence errors
+  here, so a second sender faults the link unless it sends less than one
+  frame in ``sequence_decay_frames``.
+
+Only ``OK`` and ``OK_SOME_LOST`` frames are fresh; a repeated or
+out-of-sequence counter never counts as a heartbeat.
 """
 
 from __future__ import annotations
@@ -29,6 +42,8 @@ CRC8_XOR_OUT = 0xFF
 COUNTER_MODULO = 16
 DEFAULT_MAX_DELTA = 3
 """Largest counter step still accepted as "some frames lost" (profile 1's MaxDeltaCounter)."""
+DEFAULT_SEQUENCE_DECAY_FRAMES = 16
+"""Fresh frames that take one off the sequence score (``interlock.e2e_sequence_decay_frames``)."""
 
 
 def _table() -> tuple[int, ...]:
@@ -103,6 +118,11 @@ class E2EStatus(enum.Enum):
         """True when the frame adds to the error score."""
         return self in (E2EStatus.REPEATED, E2EStatus.WRONG_SEQUENCE, E2EStatus.WRONG_CRC)
 
+    @property
+    def is_sequence_error(self) -> bool:
+        """True for a good CRC with a repeated or out-of-sequence counter (a second sender, a replay)."""
+        return self in (E2EStatus.REPEATED, E2EStatus.WRONG_SEQUENCE)
+
 
 class _HasE2E(Protocol):
     """What the checker reads of :class:`millctl.protocol.codec.Decoded` (avoids an import cycle)."""
@@ -124,11 +144,16 @@ class E2EReceiver:
     """
 
     error_limit: int
-    """Net error score at which the link is faulted (``interlock.e2e_error_limit``)."""
+    """Net error score, and sequence score, at which the link is faulted (``interlock.e2e_error_limit``)."""
     max_delta: int = DEFAULT_MAX_DELTA
     name: str = ""
     """What this receiver guards, for messages (e.g. the message name)."""
+    sequence_decay_frames: int = DEFAULT_SEQUENCE_DECAY_FRAMES
+    """Fresh frames per point taken off the sequence score (``interlock.e2e_sequence_decay_frames``)."""
     score: int = field(default=0, init=False)
+    sequence_score: int = field(default=0, init=False)
+    """Repeated and out-of-sequence counters, decaying by one per ``sequence_decay_frames`` fresh frames."""
+    _fresh_run: int = field(default=0, init=False, repr=False)
     last_counter: int | None = field(default=None, init=False)
     counts: dict[E2EStatus, int] = field(default_factory=lambda: dict.fromkeys(E2EStatus, 0), init=False)
 
@@ -137,11 +162,25 @@ class E2EReceiver:
             raise ValueError(f"E2E error limit {self.error_limit} must be ≥ 1")
         if not 1 <= self.max_delta < COUNTER_MODULO - 1:
             raise ValueError(f"E2E max_delta {self.max_delta} must be in 1 … {COUNTER_MODULO - 2}")
+        if self.sequence_decay_frames < 1:
+            raise ValueError(f"E2E sequence_decay_frames {self.sequence_decay_frames} must be ≥ 1")
 
     @property
     def faulted(self) -> bool:
-        """True while the net error score is at or above the limit."""
-        return self.score >= self.error_limit
+        """True while the net error score or the sequence score is at or above the limit."""
+        return self.score >= self.error_limit or self.sequence_score >= self.error_limit
+
+    def fault_reason(self) -> str | None:
+        """Why the link is faulted (naming the score, its value and the limit), or None."""
+        what = self.name or "E2E link"
+        if self.sequence_score >= self.error_limit:
+            return (
+                f"{what} E2E sequence score {self.sequence_score} ≥ limit {self.error_limit}: repeated or "
+                "out-of-sequence counters with good CRCs (a second sender or a replay on the identifier)"
+            )
+        if self.score >= self.error_limit:
+            return f"{what} E2E error score {self.score} ≥ limit {self.error_limit}"
+        return None
 
     def classify(self, counter: int | None, crc_ok: bool) -> E2EStatus:
         """Classify one frame by its CRC verdict and alive counter, and update the score."""
@@ -166,6 +205,14 @@ class E2EReceiver:
             self.score += 1
         elif status is E2EStatus.OK:
             self.score = max(0, self.score - 1)
+        if status.is_sequence_error:
+            self.sequence_score += 1
+            self._fresh_run = 0
+        elif status.fresh and self.sequence_score > 0:
+            self._fresh_run += 1
+            if self._fresh_run >= self.sequence_decay_frames:
+                self.sequence_score -= 1
+                self._fresh_run = 0
         return status
 
     def check(self, decoded: _HasE2E) -> E2EStatus:
@@ -173,9 +220,15 @@ class E2EReceiver:
         return self.classify(decoded.counter, decoded.crc_ok)
 
     def reset(self) -> None:
-        """Forget the last counter and the score (e.g. after an explicit RESET of the link)."""
-        self.score = 0
+        """Forget the last counter and the scores (e.g. after an explicit RESET of the link)."""
+        self.clear_scores()
         self.last_counter = None
+
+    def clear_scores(self) -> None:
+        """Clear both scores, keeping the counter (the node's accepted RESET)."""
+        self.score = 0
+        self.sequence_score = 0
+        self._fresh_run = 0
 
 
 __all__ = [
@@ -184,6 +237,7 @@ __all__ = [
     "CRC8_POLY",
     "CRC8_XOR_OUT",
     "DEFAULT_MAX_DELTA",
+    "DEFAULT_SEQUENCE_DECAY_FRAMES",
     "AliveCounter",
     "E2EReceiver",
     "E2EStatus",

@@ -169,6 +169,8 @@ class Heartbeat:
     """Controller heartbeat, 20 Hz (E2E-protected; its counter feeds the node's watchdog)."""
 
     controller_state: ControllerState
+    challenge_echo: int = 0
+    """The challenge of the latest fresh NodeStatus received (0 … 65535): the node's proof of freshness."""
     E2E: ClassVar[bool] = True
 
 
@@ -193,6 +195,8 @@ class NodeStatus:
     refused_setpoints: int = 0
     """Rolling count of refusals, modulo 256."""
     last_refusal: RefusalCode = RefusalCode.NONE
+    challenge: int = 0
+    """A fresh random number (0 … 65535) the controller's heartbeat must echo (docs/protocol.md)."""
     E2E: ClassVar[bool] = True
 
 
@@ -230,6 +234,8 @@ class PhysicsTelemetry:
     impact_energy_mj: float
     """Mean impact energy (mJ)."""
     shear_kpa: float
+    no_slip_violated: bool = False
+    """The paper's no-slip carriage needs more wall friction than μN somewhere (docs/model.md, slip)."""
     E2E: ClassVar[bool] = False
 
 

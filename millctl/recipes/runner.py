@@ -27,7 +27,7 @@ from millctl.controller import CommandRefused, Controller, ControllerState
 from millctl.errors import InterlockError
 from millctl.recipes.plan import RecipePlan, StepPlan
 from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
-from millctl.records import RecordWriter
+from millctl.records import RecordQueue, RecordWriter
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +59,7 @@ class RecipeRunner:
         records_dir: Path,
         config_sha256: str,
         source: str = "recipe",
+        records: RecordQueue | None = None,
     ) -> None:
         if not plan.ok:
             raise InterlockError(f"recipe {loaded.source} does not pass its pre-flight: {plan.violations[0]}")
@@ -81,7 +82,7 @@ class RecipeRunner:
         self._pause_at_boundary = False
         self._arm_sent = False
         self._finish_as = RunState.DONE
-        self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1)
+        self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1, queue=records)
         self._write(
             "start",
             recipe=loaded.recipe.recipe.name,
@@ -135,12 +136,12 @@ class RecipeRunner:
         if self._begun_index != self.index:
             self._begin_step()
 
-    def abort(self, source: str = "operator") -> None:
-        """Abort: a controlled stop inside the envelope, then ABORTED."""
+    def abort(self, source: str = "operator", reason: str = "") -> None:
+        """Abort: a controlled stop inside the envelope, then ABORTED (``reason``: why, besides who)."""
         if self.finished or self.state is RunState.STOPPING:
             raise CommandRefused(f"cannot abort a run that is {self.state}")
-        self._write("abort", source=source, step=self.index + 1)
-        self._stop(RunState.ABORTED, f"aborted by {source}")
+        self._write("abort", source=source, step=self.index + 1, reason=reason)
+        self._stop(RunState.ABORTED, f"aborted by {source}" + (f": {reason}" if reason else ""))
 
     # ------------------------------------------------------------------ internals
     def _enter(self, state: RunState, reason: str) -> None:

@@ -19,6 +19,7 @@ Unknown keys are errors (see docs/operations.md#recipes).
 from __future__ import annotations
 
 import hashlib
+import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -137,6 +138,16 @@ class LoadedRecipe(_Strict):
     sha256: str
 
 
+def parse_recipe(text: str, source: str) -> LoadedRecipe:
+    """Validate a recipe given as TOML text (as sent to the service); errors name ``source`` like a file."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RecipeError(source, [f"{source}: TOML syntax error: {exc}"]) from None
+    recipe = validate_as(Recipe, data, source, RecipeError)
+    return LoadedRecipe(recipe=recipe, source=source, sha256=hashlib.sha256(text.encode()).hexdigest())
+
+
 def load_recipe(path: str | Path) -> LoadedRecipe:
     """Read and validate a recipe file; errors name the file, the step field, the value and the bound."""
     path = Path(path)
@@ -157,4 +168,5 @@ __all__ = [
     "Tolerances",
     "WaitFurnaceStep",
     "load_recipe",
+    "parse_recipe",
 ]

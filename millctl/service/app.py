@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
+import time
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
 import numpy as np
-from fastapi import Body, FastAPI, Header, Query, Request
-from fastapi.responses import StreamingResponse
+from fastapi import Body, FastAPI, Header, Query
+from sse_starlette import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
 
 from millctl import __version__
@@ -24,6 +24,7 @@ from millctl.api import (
     CheckOut,
     CheckRequest,
     CommandOut,
+    ControllerState,
     ControlOut,
     EnvelopeOut,
     EnvelopePoint,
@@ -38,24 +39,42 @@ from millctl.api import (
     ServiceOut,
     SetpointsRequest,
     StatusOut,
+    StreamKind,
     TakeRequest,
 )
 from millctl.controller import Controller
 from millctl.safety import InterlockRefused
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
 from millctl.service.journal import finite
+from millctl.service.limits import BodyLimit
 from millctl.service.runtime import ServiceRuntime
 
 STATUS_PERIOD_S = 0.25
 """The stream sends a status this often (s)."""
 STREAM_POLL_S = 0.05
 """The stream looks for new events this often (s)."""
+SETTLE_S = 2.0
+"""A command's answer waits at most this long for the state the command leads to (s), then reports the state as is."""
+SETTLE_POLL_S = 0.01
+
+S = ControllerState
+SETTLES_IN: dict[str, frozenset[ControllerState]] = {
+    "arm": frozenset({S.ARMED}),
+    "disarm": frozenset({S.DISABLED}),
+    "reset": frozenset({S.DISABLED}),
+    "stop": frozenset({S.STOPPING, S.ARMED}),
+    "setpoints": frozenset({S.RUNNING}),
+}
+"""The states a command leads to once the node has answered (a trip ends the wait too)."""
 
 ClientName = Annotated[
     str | None,
     Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
 ]
-LeaseId = Annotated[str | None, Header(max_length=64, description="the lease id from POST /v1/control/take")]
+LeaseId = Annotated[
+    str | None,
+    Header(pattern=r"^[A-Za-z0-9_-]{1,64}$", description="the lease id from POST /v1/control/take"),
+]
 
 
 def create_app(runtime: ServiceRuntime) -> FastAPI:
@@ -67,23 +86,33 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         "it. Every command goes through the controller's interlock; E-stop is always accepted.",
     )
     install_error_handlers(app)
+    app.add_middleware(BodyLimit, max_bytes=runtime.config.service.max_request_bytes)
     rt = runtime
 
     def source(name: str | None) -> str:
         return f"api:{name or 'anonymous'}"
 
-    def command(lease: str | None, what: str, action: Any, *, idle: bool = True) -> CommandOut:
-        """Check the lease, then run ``action(controller, source)`` under the lock; the source is the holder."""
+    def command(lease: str | None, what: str, action: Any, *, idle: bool = True, settles: str = "") -> CommandOut:
+        """Check the lease, run ``action(controller, source)`` under the lock, and answer with the state it led to.
+
+        The node confirms a command a few ticks later (arm → ARMED), so the answer
+        waits, up to SETTLE_S, for a state in ``SETTLES_IN[settles]`` or a trip.
+        """
         holder = rt.leases.check(lease).holder
 
-        def run(c: Controller) -> CommandOut:
+        def run(c: Controller) -> float | None:
             if idle:
                 rt.recipe.require_idle(what)
             result = action(c, holder)
-            duration = getattr(result, "duration_s", None)
-            return CommandOut(message=what, state=c.state, duration_s=duration)
+            duration: float | None = getattr(result, "duration_s", None)
+            return duration
 
-        return rt.call(run)
+        duration = rt.call(run)
+        wanted = SETTLES_IN.get(settles, frozenset()) | {S.TRIPPED}
+        deadline = time.monotonic() + SETTLE_S
+        while settles and rt.controller.state not in wanted and time.monotonic() < deadline and not rt.stopping:
+            time.sleep(SETTLE_POLL_S)
+        return CommandOut(message=what, state=rt.controller.state, duration_s=duration)
 
     # ------------------------------------------------------------------ reading
     @app.get("/v1/status", response_model=StatusOut, responses=READ_RESPONSES, tags=["watch"])
@@ -93,14 +122,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     @app.get("/v1/service", response_model=ServiceOut, responses=READ_RESPONSES, tags=["watch"])
     def service() -> ServiceOut:
-        """The running service: process, config (path, sha256), envelope law and margin, bus, records."""
-        env = rt.controller.envelope
-        return ServiceOut(
-            pid=os.getpid(), version=__version__, started_unix=rt.started_unix, config_path=rt.loaded.source,
-            config_sha256=rt.loaded.sha256, law=env.law.value, margin=env.margin,
-            bus_interface=rt.config.bus.interface, bus_channel=rt.config.bus.channel,
-            embedded_node=rt.node is not None, records_dir=str(rt.records_dir),
-        )
+        """The running service: which mill (name, bus, simulated or not), process, config, envelope, records."""
+        return rt.describe()
 
     @app.get("/v1/envelope", response_model=EnvelopeOut, responses=READ_RESPONSES, tags=["envelope"])
     def envelope(points: Annotated[int, Query(ge=2, le=1001)] = 41) -> EnvelopeOut:
@@ -113,8 +136,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             vibration_max_rpm=env.vibration_max_rpm, furnace_min_c=env.furnace_min_c, furnace_max_c=env.furnace_max_c,
             max_heating_rate_c_per_min=env.max_heating_rate_c_per_min,
             points=[
-                EnvelopePoint(omega_v_rpm=float(w_v[i]), omega_r_limit_rpm=finite(float(limit[i])),
-                              law_limit_rpm=finite(float(law_limit[i])), law_is_every_cycle=bool(every[i]))
+                EnvelopePoint(vibration_rpm=float(w_v[i]), limit_rotary_rpm=finite(float(limit[i])),
+                              law_limit_rotary_rpm=finite(float(law_limit[i])), law_is_every_cycle=bool(every[i]))
                 for i in range(points)
             ],
         )
@@ -124,7 +147,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         """Check an operating point against the envelope; nothing is commanded."""
         verdict = rt.controller.envelope.check(body.rotary_rpm, body.vibration_rpm, body.temp_c)
         refusals = refusal_list(InterlockRefused(verdict)) if not verdict.ok else []
-        return CheckOut(ok=verdict.ok, reason=verdict.reason(), omega_r_limit_rpm=finite(verdict.omega_r_limit_rpm),
+        return CheckOut(ok=verdict.ok, reason=verdict.reason(), limit_rotary_rpm=finite(verdict.omega_r_limit_rpm),
                         margin_rpm=finite(verdict.margin_rpm), refusals=refusals)
 
     @app.get("/v1/events", response_model=EventsOut, responses=READ_RESPONSES, tags=["watch"])
@@ -137,16 +160,24 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
     @app.get(
         "/v1/stream",
-        response_class=StreamingResponse,
-        responses={200: {"content": {"text/event-stream": {}}, "description": "server-sent events"},
+        response_class=EventSourceResponse,
+        responses={200: {"content": {"text/event-stream": {}},
+                         "description": "server-sent events: `status` (StatusOut), `event` (EventOut, id = seq)"},
                    **READ_RESPONSES},
         tags=["watch"],
     )
     async def stream(
-        request: Request, count: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
-    ) -> StreamingResponse:
-        """Server-sent events: ``status`` every 0.25 s and every ``event`` as it happens (``count``: then stop)."""
-        return StreamingResponse(_sse(request, rt, count), media_type="text/event-stream")
+        count: Annotated[int | None, Query(ge=1, le=1_000_000)] = None,
+        last_event_id: Annotated[int | None, Header(alias="Last-Event-ID", ge=0, description=(
+            "resume: send every event after this sequence number first (still in the ring of 2000)"))] = None,
+    ) -> EventSourceResponse:
+        """Server-sent events: ``status`` every 0.25 s and every ``event`` as it happens (``count``: then stop).
+
+        Each event's SSE id is its sequence number; a client that reconnects with
+        ``Last-Event-ID`` gets every event it missed before the live ones.
+        """
+        after = rt.journal.last_seq if last_event_id is None else last_event_id
+        return EventSourceResponse(_sse(rt, count, after), ping=15)
 
     # ------------------------------------------------------------------ control lease
     @app.get("/v1/control", response_model=ControlOut, responses=READ_RESPONSES, tags=["control"])
@@ -179,12 +210,12 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.post("/v1/arm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def arm(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Arm the node (from DISABLED)."""
-        return command(x_millctl_lease, "arm", lambda c, s: c.arm(source=s))
+        return command(x_millctl_lease, "arm", lambda c, s: c.arm(source=s), settles="arm")
 
     @app.post("/v1/disarm", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def disarm(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Disarm the node (from ARMED at standstill)."""
-        return command(x_millctl_lease, "disarm", lambda c, s: c.disarm(source=s))
+        return command(x_millctl_lease, "disarm", lambda c, s: c.disarm(source=s), settles="disarm")
 
     @app.post("/v1/stop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def stop(x_millctl_lease: LeaseId = None) -> CommandOut:
@@ -194,20 +225,24 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             rt.recipe.abort_if_active(s)
             c.stop(source=s)
 
-        return command(x_millctl_lease, "stop", act, idle=False)
+        return command(x_millctl_lease, "stop", act, idle=False, settles="stop")
 
     @app.post("/v1/reset", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def reset(x_millctl_lease: LeaseId = None) -> CommandOut:
         """Clear a latched trip (fresh telemetry, both drives at standstill)."""
-        return command(x_millctl_lease, "reset", lambda c, s: c.reset(source=s))
+        return command(x_millctl_lease, "reset", lambda c, s: c.reset(source=s), settles="reset")
 
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
         """Emergency stop: needs no lease and is always accepted."""
-        with rt.lock:
-            rt.recipe.abort_if_active(source(x_millctl_client))
-            rt.controller.estop(source=source(x_millctl_client))
-            return CommandOut(message="E-STOP", state=rt.controller.state)
+        who = source(x_millctl_client)
+
+        def act(c: Controller) -> CommandOut:
+            rt.recipe.abort_if_active(who)
+            c.estop(source=who)
+            return CommandOut(message="E-STOP", state=c.state)
+
+        return rt.call(act, needs_node=False, urgent=True)
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(
@@ -224,6 +259,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             lambda c, s: c.set_speeds(body.rotary_rpm, body.vibration_rpm, rotary_rate_rpm_s=body.rotary_rate_rpm_s,
                                       vibration_rate_rpm_s=body.vibration_rate_rpm_s, linear=body.linear,
                                       furnace_c=body.temp_c, heating_rate_c_per_min=body.rate_c_per_min, source=s),
+            settles="setpoints" if body.rotary_rpm > 0.0 or body.vibration_rpm > 0.0 else "",
         )
 
     @app.post("/v1/furnace", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
@@ -244,15 +280,22 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
     def recipe() -> RecipeOut:
         """Progress of the current (or last) recipe run."""
-        with rt.lock:
+        def read(c: Controller) -> RecipeOut:
             progress = rt.recipe.progress()
             shown = RecipeProgress.model_validate(finite(progress)) if progress is not None else None
             return RecipeOut(active=rt.recipe.active, progress=shown)
 
+        return rt.call(read, needs_node=False)
+
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:
-        """Load, pre-flight and start a recipe (refused with every violation if its plan leaves the envelope)."""
-        return recipe_action(x_millctl_lease, lambda who: rt.recipe.run(body.path, rt.config, who))
+        """Pre-flight and start a recipe sent as its TOML text; refused with every violation if it leaves the envelope.
+
+        The service opens no path a request names: a client may be on another machine.
+        """
+        rt.leases.check(x_millctl_lease)
+        loaded, plan = rt.recipe.prepare(body.name, body.text, rt.config)  # in this request's thread, not the loop
+        return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who))
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_pause(
@@ -283,31 +326,32 @@ def _control_out(rt: ServiceRuntime) -> ControlOut:
     return ControlOut(held=True, holder=lease.holder, expires_in_s=remaining, expired=remaining <= 0.0)
 
 
-def _sse_message(kind: str, data: Any, event_id: int | None = None) -> str:
-    head = f"id: {event_id}\n" if event_id is not None else ""
-    return f"{head}event: {kind}\ndata: {json.dumps(data, ensure_ascii=False, default=str)}\n\n"
+async def _sse(rt: ServiceRuntime, count: int | None, after: int) -> AsyncIterator[ServerSentEvent]:
+    """Every event after ``after``, then status every STATUS_PERIOD_S and each new event, until the service stops.
 
-
-async def _sse(request: Request, rt: ServiceRuntime, count: int | None) -> AsyncIterator[str]:
-    """Status every STATUS_PERIOD_S and every new event, until the client leaves or the service stops."""
+    sse-starlette ends the generator when the client leaves.
+    """
     loop = asyncio.get_running_loop()
-    last_seq = rt.journal.last_seq
+    last_seq = after
     next_status_s = loop.time()
     sent = 0
     while not rt.stopping and (count is None or sent < count):
         for event in rt.journal.after(last_seq):
             last_seq = event["seq"]
-            yield _sse_message("event", event, last_seq)
+            yield ServerSentEvent(data=_json(event), event=StreamKind.EVENT.value, id=str(last_seq))
             sent += 1
             if count is not None and sent >= count:
                 return
         if loop.time() >= next_status_s:
-            yield _sse_message("status", await run_in_threadpool(rt.status))
+            status = await run_in_threadpool(rt.status)
+            yield ServerSentEvent(data=_json(status), event=StreamKind.STATUS.value)
             sent += 1
             next_status_s += STATUS_PERIOD_S
-        if await request.is_disconnected():
-            return
         await asyncio.sleep(STREAM_POLL_S)
+
+
+def _json(data: Any) -> str:
+    return json.dumps(data, ensure_ascii=False, default=str)
 
 
 __all__ = ["STATUS_PERIOD_S", "create_app"]

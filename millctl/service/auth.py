@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import secrets
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -24,12 +25,18 @@ MIN_TOKEN_CHARS = 16
 
 
 def read_token(path: str | Path) -> str:
-    """Read the bearer token (first line of the file); refuse a missing, empty or short one."""
+    """Read the bearer token (first line of the file); refuse a missing, empty, short or world-readable one."""
     path = Path(path)
     try:
+        mode = path.stat().st_mode
         token = path.read_text(encoding="utf-8").strip().splitlines()[0].strip() if path.stat().st_size else ""
     except OSError as exc:
         raise InvalidInputError(f"service.token_file {path}: cannot read it: {exc.strerror}") from None
+    if mode & 0o007:
+        raise InvalidInputError(
+            f"service.token_file {path}: mode 0o{stat.S_IMODE(mode):o} lets others read the token; "
+            f"`chmod 600 {path}` (or 640 for the service's group) first"
+        )
     if len(token) < MIN_TOKEN_CHARS:
         raise InvalidInputError(
             f"service.token_file {path}: the token has {len(token)} characters; it needs at least {MIN_TOKEN_CHARS}"

@@ -5,10 +5,12 @@
 409    ``recipe_refused``      a recipe's pre-flight plan leaves the envelope
 409    ``wrong_state``         the state machine (or a running recipe) refused it
 422    ``invalid_request``     validation failed (``field`` names the field)
-422    ``invalid_input``       a file the request names is missing or invalid
+422    ``invalid_input``       a recipe's text is not a valid recipe (the field is named)
 423    ``control_held``        another client holds control (``holder`` names it)
 401    ``unauthorized``        TCP without the right bearer token (see auth.py)
 503    ``node_unreachable``    no node on the bus, or the control loop is down
+503    ``busy``                the control loop's command queue is full (nothing was done)
+413    ``body_too_large``      a request body over ``service.max_request_bytes`` (see limits.py)
 =====  ======================  ====================================================
 """
 
@@ -27,7 +29,7 @@ from millctl.errors import InterlockError, InvalidInputError
 from millctl.safety import InterlockRefused
 from millctl.service.lease import LeaseError
 from millctl.service.recipe import RecipeRefused
-from millctl.service.runtime import NodeUnreachable
+from millctl.service.runtime import NodeUnreachable, ServiceBusy
 
 
 def _num(value: float) -> float | None:
@@ -83,11 +85,15 @@ async def _interlock(request: Request, exc: Exception) -> JSONResponse:
 
 
 async def _invalid_input(request: Request, exc: Exception) -> JSONResponse:
-    return error_response(422, ErrorCode.INVALID_INPUT, str(exc), field="path")
+    return error_response(422, ErrorCode.INVALID_INPUT, str(exc), field="text")
 
 
 async def _unreachable(request: Request, exc: Exception) -> JSONResponse:
     return error_response(503, ErrorCode.NODE_UNREACHABLE, str(exc))
+
+
+async def _busy(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(503, ErrorCode.BUSY, str(exc))
 
 
 async def _http(request: Request, exc: Exception) -> JSONResponse:
@@ -106,19 +112,22 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(InterlockError, _interlock)
     app.add_exception_handler(InvalidInputError, _invalid_input)
     app.add_exception_handler(NodeUnreachable, _unreachable)
+    app.add_exception_handler(ServiceBusy, _busy)
     app.add_exception_handler(HTTPException, _http)
 
 
 ERROR = {"model": ErrorBody}
 READ_RESPONSES: dict[int | str, dict[str, Any]] = {
     401: {**ERROR, "description": "TCP request without the right bearer token"},
+    413: {**ERROR, "description": "request body over service.max_request_bytes"},
     422: {**ERROR, "description": "invalid request (the field is named)"},
+    503: {**ERROR, "description": "the control loop is down or its queue is full"},
 }
 COMMAND_RESPONSES: dict[int | str, dict[str, Any]] = {
     **READ_RESPONSES,
     409: {**ERROR, "description": "refused by the interlock (with its reason and refusals) or by the state"},
     423: {**ERROR, "description": "control is held by another client (the holder is named), or no lease"},
-    503: {**ERROR, "description": "the node is unreachable or the control loop is down"},
+    503: {**ERROR, "description": "the node is unreachable, the control loop is down or its queue is full"},
 }
 
 __all__ = ["COMMAND_RESPONSES", "ERROR", "READ_RESPONSES", "error_response", "install_error_handlers", "refusal_list"]

@@ -3,7 +3,8 @@
 Controller events (state changes, commands, refusals, trips) arrive through
 the controller's listener; the service adds its own (start, stop, config,
 control taken and released). Each gets a sequence number, so clients can ask
-for the events after the last one they saw (``GET /v1/events?after=N``).
+for the events after the last one they saw (``GET /v1/events?after=N``); the
+numbering continues from the last recorded event of the previous session.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from millctl.controller import Event
-from millctl.records import RecordWriter
+from millctl.records import RecordQueue, RecordWriter, last_record
 
 log = logging.getLogger(__name__)
 
@@ -38,13 +39,24 @@ def finite(value: Any) -> Any:
     return value
 
 
+def previous_seq(records_dir: Path) -> int:
+    """The sequence number of the last recorded event of an earlier session (0 if none): numbering continues."""
+    for name in (f"{EVENTS_NAME}.jsonl", f"{EVENTS_NAME}.1.jsonl"):
+        last = last_record(records_dir / name)
+        if last is not None and isinstance(last.get("seq"), int):
+            return int(last["seq"])
+    return 0
+
+
 class Journal:
     """Numbers, keeps and records events; thread-safe (the control loop and API threads both write)."""
 
-    def __init__(self, records_dir: str | Path, *, rotate_bytes: int, keep_files: int) -> None:
-        self.writer = RecordWriter(records_dir, EVENTS_NAME, rotate_bytes=rotate_bytes, keep=keep_files)
+    def __init__(
+        self, records_dir: str | Path, *, rotate_bytes: int, keep_files: int, queue: RecordQueue | None = None
+    ) -> None:
+        self.writer = RecordWriter(records_dir, EVENTS_NAME, rotate_bytes=rotate_bytes, keep=keep_files, queue=queue)
         self._ring: deque[dict[str, Any]] = deque(maxlen=RING_SIZE)
-        self._seq = 0
+        self._seq = previous_seq(Path(records_dir))
         self._lock = threading.Lock()
 
     @property
@@ -72,7 +84,7 @@ class Journal:
             }
             self._ring.append(record)
             try:
-                self.writer.write(record)
+                self.writer.write(record)  # queued: the disk is written on the record thread
             except (OSError, ValueError) as exc:  # a full disk must not stop the control loop
                 log.error("cannot write the event record %s: %s", self.writer.path, exc)
         return record
@@ -92,4 +104,4 @@ class Journal:
         self.writer.close()
 
 
-__all__ = ["EVENTS_NAME", "RING_SIZE", "Journal", "finite"]
+__all__ = ["EVENTS_NAME", "RING_SIZE", "Journal", "finite", "previous_seq"]

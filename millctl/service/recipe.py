@@ -1,8 +1,10 @@
 """The service's recipe slot: at most one :class:`~millctl.recipes.runner.RecipeRunner` at a time, in the loop.
 
-A recipe is loaded and pre-flighted against the service's own configuration
-before it may start; a plan with any violation is refused with every one of
-them. All methods are called under the runtime's lock.
+A recipe arrives as its TOML text (a client may be on another machine: the
+service never opens a path a request names). It is parsed and pre-flighted
+against the service's own configuration in the request's thread, outside the
+control loop; a plan with any violation is refused with every one of them.
+Only the start itself, and every other method, run in the control loop.
 """
 
 from __future__ import annotations
@@ -15,9 +17,10 @@ from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.controller import CommandRefused, Controller
 from millctl.errors import InterlockError
-from millctl.recipes import load_recipe, plan_recipe
+from millctl.recipes import LoadedRecipe, RecipePlan, parse_recipe, plan_recipe
 from millctl.recipes.plan import Violation
 from millctl.recipes.runner import RecipeRunner
+from millctl.records import RecordQueue
 
 log = logging.getLogger(__name__)
 
@@ -34,11 +37,15 @@ class RecipeRefused(InterlockError):
 class RecipeSlot:
     """Holds the current (or last finished) recipe run of the service."""
 
-    def __init__(self, controller: Controller, clock: Clock, records_dir: Path, config_sha256: str) -> None:
+    def __init__(
+        self, controller: Controller, clock: Clock, records_dir: Path, config_sha256: str,
+        records: RecordQueue | None = None,
+    ) -> None:
         self.controller = controller
         self.clock = clock
         self.records_dir = records_dir
         self.config_sha256 = config_sha256
+        self.records = records
         self.runner: RecipeRunner | None = None
 
     @property
@@ -53,14 +60,19 @@ class RecipeSlot:
                 f"{what} refused: recipe run {self.runner.run_id} is {self.runner.state}; pause or abort it first"
             )
 
-    def run(self, path: str, config: MillConfig, source: str) -> dict[str, Any]:
-        """Load, pre-flight and start a recipe; return its progress."""
-        if self.runner is not None and self.active:
-            raise CommandRefused(f"recipe run {self.runner.run_id} is still {self.runner.state}: one run at a time")
-        loaded = load_recipe(path)
+    @staticmethod
+    def prepare(name: str, text: str, config: MillConfig) -> tuple[LoadedRecipe, RecipePlan]:
+        """Parse and pre-flight a recipe's text (outside the loop); refuse it with every violation."""
+        loaded = parse_recipe(text, name)
         plan = plan_recipe(loaded.recipe, config)
         if not plan.ok:
             raise RecipeRefused(loaded.source, plan.law, plan.violations)
+        return loaded, plan
+
+    def start(self, loaded: LoadedRecipe, plan: RecipePlan, source: str) -> dict[str, Any]:
+        """Start a prepared run (in the loop); return its progress."""
+        if self.runner is not None and self.active:
+            raise CommandRefused(f"recipe run {self.runner.run_id} is still {self.runner.state}: one run at a time")
         self.runner = RecipeRunner(
             self.controller,
             loaded,
@@ -69,6 +81,7 @@ class RecipeSlot:
             records_dir=self.records_dir,
             config_sha256=self.config_sha256,
             source=source,
+            records=self.records,
         )
         return self.runner.progress()
 
@@ -95,13 +108,18 @@ class RecipeSlot:
         runner.abort(source=source)
         return runner.progress()
 
-    def abort_if_active(self, source: str) -> None:
+    def abort_if_active(self, source: str, reason: str = "") -> None:
         """Abort an active run before a stop, an E-stop or a shutdown (never raises)."""
         if self.runner is not None and self.active:
             try:
-                self.runner.abort(source=source)
+                self.runner.abort(source=source, reason=reason)
             except InterlockError as exc:
                 log.warning("recipe abort by %s: %s", source, exc)
+
+    def close(self) -> None:
+        """Close the run record of an unfinished run (its queued records are written first)."""
+        if self.runner is not None and not self.runner.finished:
+            self.runner.record.close()
 
     def progress(self) -> dict[str, Any] | None:
         """Progress of the current or last run, or None before the first."""

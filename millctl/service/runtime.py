@@ -1,31 +1,43 @@
 """The service's runtime: one control-loop thread owning the controller, the embedded node and the recipe runner.
 
-Every ``timing.controller_tick_s`` the loop ticks the node (when embedded),
-the controller and the recipe runner, all under one lock; API handlers call
-the controller only under that same lock (:meth:`ServiceRuntime.call`). If
-the loop dies, the heartbeat stops and the node's watchdog stops the mill
-(SAFETY 2): the service never keeps commanding without its loop.
+Every ``timing.controller_tick_s`` the loop ticks the controller, the recipe
+runner and the node (when embedded), then runs the commands waiting in its
+bounded queue (:meth:`ServiceRuntime.call`). Request handlers never touch the
+controller themselves and never hold the loop's lock: they queue a command
+and wait for its result, so a slow request (a huge body, a slow client)
+cannot delay a heartbeat (SAFETY 19). A full queue is refused at once (503
+``busy``); E-stop has a queue of its own that is served first. Records (events,
+run records, the bus log) are written on a thread of their own
+(:class:`~millctl.records.RecordQueue`): a full or failing disk is a warning and
+an event, a running recipe is stopped in a controlled way, and the mill stays
+controlled (SAFETY 23). If the loop dies, the heartbeat stops and the node's
+watchdog stops the mill (SAFETY 2): the service never keeps commanding
+without its loop.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import queue
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any, TypeVar
 
 import can
 
 from millctl import __version__
-from millctl.api import EventKind
+from millctl.api import EventKind, ServiceOut
 from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
+from millctl.config.paths import service_paths
 from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
 from millctl.errors import BusError
 from millctl.protocol import RotatingBusLog, open_bus
+from millctl.records import RecordQueue
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
 from millctl.service.recipe import RecipeSlot
@@ -36,8 +48,15 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 S = ControllerState
 
-BUS_LOG_NAME = "bus.log"
-"""The candump bus log, in ``<records_dir>/bus/``."""
+BUS_LOG_STEM = "bus"
+"""The candump bus log of each session: ``<records_dir>/bus/bus_<start time>.log``."""
+
+COMMAND_QUEUE_SIZE = 32
+"""Commands waiting for the control loop; one more is refused at once (503 ``busy``)."""
+COMMANDS_PER_TICK = 8
+"""The loop runs at most this many queued commands after each tick."""
+COMMAND_TIMEOUT_S = 5.0
+"""A request waits this long for the loop to run its command before it is answered 503 (s)."""
 
 EMBEDDED_NODE_WAIT_S = 10.0
 """With the embedded node, the API opens once the controller has seen it (or after this long, s)."""
@@ -48,6 +67,13 @@ STOP_BOUND_S = (5.0, 30.0)
 
 class NodeUnreachable(BusError):
     """The controller has not heard from the node (or the control loop is down): nothing can be commanded."""
+
+
+class ServiceBusy(BusError):
+    """The control loop's command queue is full, or it did not take the command in time (HTTP 503)."""
+
+
+_Command = tuple[Callable[[Controller], Any], bool, "Future[Any]"]
 
 
 class ServiceRuntime:
@@ -65,15 +91,25 @@ class ServiceRuntime:
         config = self.config = loaded.config
         service = config.service
         self.clock = clock or MonotonicClock()
-        self.records_dir = Path(service.records_dir)
+        self.records_dir = service_paths(loaded).records_dir
         self.started_unix = time.time()
-        self.journal = Journal(self.records_dir, rotate_bytes=service.rotate_bytes, keep_files=service.keep_files)
+        self.socket_path = ""
+        """The socket the API is served on (set by :func:`millctl.service.serve`)."""
+        self.records_warning: str | None = None
+        """Why records cannot be written now (None while they can): shown in the status."""
+        self.records = RecordQueue(on_change=self._records_changed)
+        self.journal = Journal(self.records_dir, rotate_bytes=service.rotate_bytes, keep_files=service.keep_files,
+                               queue=self.records)
         self.lock = threading.RLock()
         self.leases = LeaseManager(self.clock, lease_ttl_s)
         self.failed: str | None = None
         self.stopping = False
-        bus_log = RotatingBusLog(self.records_dir / "bus" / BUS_LOG_NAME, service.rotate_bytes, service.keep_files)
-        self.bus = TappedBus(open_bus(config.bus), bus_log)
+        self._commands: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
+        self._urgent: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
+        session = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(self.started_unix))
+        self.bus_log_path = self.records_dir / "bus" / f"{BUS_LOG_STEM}_{session}_{os.getpid()}.log"
+        bus_log = RotatingBusLog(self.bus_log_path, service.rotate_bytes, service.keep_files)
+        self.bus = TappedBus(open_bus(config.bus), bus_log, channel=config.bus.channel, records=self.records)
         self.controller = Controller(config, self.bus, self.clock, listener=self.journal.on_event)
         self.node: Any = None
         self._node_bus: can.BusABC | None = None
@@ -82,7 +118,7 @@ class ServiceRuntime:
 
             self._node_bus = open_bus(config.bus)
             self.node = Node(config, self._node_bus, self.clock)
-        self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256)
+        self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
         self._halt = threading.Event()
         self._closed = False
         self._thread = threading.Thread(target=self._loop, name="millctl-control-loop", daemon=True)
@@ -117,6 +153,7 @@ class ServiceRuntime:
         while not self._halt.is_set():
             try:
                 self.tick()
+                self._run_commands()
             except Exception as exc:  # the loop must say why it died; the node's watchdog does the rest
                 log.exception("control loop failed")
                 self.failed = f"control loop failed: {type(exc).__name__}: {exc}"
@@ -145,28 +182,111 @@ class ServiceRuntime:
             if self.node is not None:
                 self.node.tick()
 
+    def _run_commands(self) -> None:
+        """Run the queued commands (E-stops first), at most COMMANDS_PER_TICK of the others, under the lock."""
+        with self.lock:
+            for source, bound in ((self._urgent, COMMAND_QUEUE_SIZE), (self._commands, COMMANDS_PER_TICK)):
+                for _ in range(bound):
+                    try:
+                        action, needs_node, future = source.get_nowait()
+                    except queue.Empty:
+                        break
+                    if not future.set_running_or_notify_cancel():
+                        continue  # its request gave up waiting
+                    try:
+                        future.set_result(self._execute(action, needs_node))
+                    except BaseException as exc:  # handed to the waiting request, which maps it to its 4xx/5xx
+                        future.set_exception(exc)
+
+    def _execute(self, action: Callable[[Controller], T], needs_node: bool) -> T:
+        if needs_node and self.controller.state is S.DISCONNECTED:
+            raise NodeUnreachable(
+                f"no NodeStatus from the node on {self.config.bus.interface}:{self.config.bus.channel} yet: "
+                "is the node running and on the same bus?"
+            )
+        return action(self.controller)
+
     @property
     def running(self) -> bool:
         """True while the control loop runs."""
         return self._thread.is_alive() and self.failed is None
 
-    def call(self, action: Callable[[Controller], T], *, needs_node: bool = True) -> T:
-        """Run ``action(controller)`` under the lock; refuse when the loop is down or the node never answered."""
-        if not self.running:
-            raise NodeUnreachable(self.failed or "the control loop is not running")
-        with self.lock:
-            if needs_node and self.controller.state is S.DISCONNECTED:
-                raise NodeUnreachable(
-                    f"no NodeStatus from the node on {self.config.bus.interface}:{self.config.bus.channel} yet: "
-                    "is the node running and on the same bus?"
-                )
-            return action(self.controller)
+    def call(
+        self, action: Callable[[Controller], T], *, needs_node: bool = True, urgent: bool = False,
+        timeout_s: float = COMMAND_TIMEOUT_S,
+    ) -> T:
+        """Have the control loop run ``action(controller)`` after its next tick and return the result.
+
+        Refused at once when the loop is down, the node never answered, or the
+        queue is full; ``urgent`` (E-stop) goes to the queue served first. The
+        loop thread itself (and a runtime whose loop never started) runs it here.
+        """
+        if threading.current_thread() is self._thread or not self._thread.is_alive():
+            # in the loop itself, or no loop to ask (not started, or ended): here, under the lock
+            if self._thread.ident is not None and needs_node:
+                raise NodeUnreachable(self.failed or "the control loop is not running")
+            with self.lock:
+                return self._execute(action, needs_node)
+        future: Future[T] = Future()
+        try:
+            (self._urgent if urgent else self._commands).put_nowait((action, needs_node, future))
+        except queue.Full:
+            raise ServiceBusy(
+                f"the control loop has {COMMAND_QUEUE_SIZE} commands waiting: try again (nothing was done)"
+            ) from None
+        try:
+            return future.result(timeout=timeout_s)
+        except FutureTimeout:
+            if future.cancel():
+                raise ServiceBusy(f"the control loop did not take the command within {timeout_s:.0f} s "
+                                  "(nothing was done)") from None
+            return future.result()  # it started just now: its result is on the way
+
+    def call_soon(self, action: Callable[[Controller], Any]) -> None:
+        """Queue ``action(controller)`` for the loop without waiting (from the records thread; never raises)."""
+        future: Future[Any] = Future()
+        try:
+            self._urgent.put_nowait((action, False, future))
+        except queue.Full:
+            log.error("the control loop's urgent queue is full; dropped %s", action)
 
     def status(self) -> dict[str, Any]:
         """The controller's status, JSON-ready (non-finite floats as None)."""
-        with self.lock:
-            data: dict[str, Any] = finite(self.controller.status().as_dict())
+        data: dict[str, Any] = self.call(lambda c: finite(c.status().as_dict()), needs_node=False)
         return data
+
+    def describe(self) -> ServiceOut:
+        """Which mill this service controls, and how (``GET /v1/service``)."""
+        env = self.controller.envelope
+        return ServiceOut(
+            mill_name=self.config.name, simulated=self.node is not None, pid=os.getpid(), version=__version__,
+            started_unix=self.started_unix, config_path=self.loaded.source, config_sha256=self.loaded.sha256,
+            law=env.law.value, margin=env.margin, bus_interface=self.config.bus.interface,
+            bus_channel=self.config.bus.channel, embedded_node=self.node is not None, socket_path=self.socket_path,
+            records_dir=str(self.records_dir), bus_log=str(self.bus_log_path), warnings=self.warnings(),
+        )
+
+    def warnings(self) -> list[str]:
+        """What the operator must know about the service itself (records that cannot be written)."""
+        if self.records_warning is None:
+            return []
+        return [f"records: {self.records_warning} ({self.records.lost} records lost so far; "
+                f"records dir {self.records_dir}); the mill is controlled as before"]
+
+    def _records_changed(self, failing: str | None) -> None:
+        """On the records thread: writes started failing (or work again). Warn, record, stop a recipe."""
+        self.records_warning = failing
+        if failing is None:
+            self.journal.add(EventKind.RECORDS, "service", f"records are written again ({self.records.lost} lost)",
+                             lost=self.records.lost)
+            return
+        self.journal.add(EventKind.RECORDS, "service", f"records cannot be written: {failing}; the mill is "
+                         "controlled as before, a running recipe is stopped", error=failing)
+
+        def stop_recipe(c: Controller) -> None:
+            self.recipe.abort_if_active("service", reason=f"records cannot be written ({failing})")
+
+        self.call_soon(stop_recipe)
 
     # ------------------------------------------------------------------ shutdown
     def _at_rest(self) -> bool:
@@ -204,7 +324,7 @@ class ServiceRuntime:
         bound_s = self.stop_bound_s() if bound_s is None else bound_s
         if self.running:
             with self.lock:
-                self.recipe.abort_if_active("service")
+                self.recipe.abort_if_active("service", reason=reason)
                 if self.controller.state in (S.ARMED, S.RUNNING, S.STOPPING):
                     self.controller.stop(source="service", reason=reason)
             stopped = self._wait(self._at_rest, bound_s)
@@ -239,6 +359,17 @@ class ServiceRuntime:
             if self._node_bus is not None:
                 self._node_bus.shutdown()
             self.journal.close()
+        self.recipe.close()
+        self.records.close()
 
 
-__all__ = ["BUS_LOG_NAME", "EMBEDDED_NODE_WAIT_S", "STOP_BOUND_S", "NodeUnreachable", "ServiceRuntime"]
+__all__ = [
+    "BUS_LOG_STEM",
+    "COMMAND_QUEUE_SIZE",
+    "COMMAND_TIMEOUT_S",
+    "EMBEDDED_NODE_WAIT_S",
+    "STOP_BOUND_S",
+    "NodeUnreachable",
+    "ServiceBusy",
+    "ServiceRuntime",
+]

@@ -18,16 +18,18 @@ from textual.app import SystemCommand
 from textual.binding import Binding, BindingType
 from textual.screen import Screen
 
+from millctl.api import ControllerState
 from millctl.tui.commands import Commanding
 from millctl.tui.follow import Following
 
+S = ControllerState
 ENABLED_IN = {
-    "arm": frozenset({"DISABLED"}),
-    "disarm": frozenset({"ARMED"}),
-    "set": frozenset({"ARMED", "RUNNING"}),
-    "stop": frozenset({"ARMED", "RUNNING", "STOPPING"}),
-    "reset": frozenset({"TRIPPED"}),
-    "recipe_run": frozenset({"DISABLED", "ARMED"}),
+    "arm": frozenset({S.DISABLED}),
+    "disarm": frozenset({S.ARMED}),
+    "set": frozenset({S.ARMED, S.RUNNING}),
+    "stop": frozenset({S.ARMED, S.RUNNING, S.STOPPING}),
+    "reset": frozenset({S.TRIPPED}),
+    "recipe_run": frozenset({S.DISABLED, S.ARMED}),
 }
 """Controller states in which a footer command applies; elsewhere its key is greyed out (the palette still offers
 it, and the service refuses it with its reason)."""
@@ -60,9 +62,9 @@ class MillApp(Commanding, Following):
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         """Grey out (None) the keys that do not apply in the present state; E-stop, control and quit always apply."""
         if action in ENABLED_IN:
-            return True if self.online and self.status.get("state") in ENABLED_IN[action] else None
+            return True if self.online and self.state in ENABLED_IN[action] else None
         if action in RECIPE_ACTIONS:
-            return True if self.online and self.recipe.get("active") else None
+            return True if self.online and self.recipe_active else None
         return True
 
     def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:

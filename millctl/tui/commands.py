@@ -12,15 +12,17 @@ import asyncio
 import contextlib
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import Any
 
+from pydantic import BaseModel
+
+from millctl.api import CommandOut
 from millctl.client import AsyncClient
 from millctl.tui.format import MOVING_STATES
 from millctl.tui.link import LINK_ERRORS, describe
 from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal, SetRequest
 from millctl.tui.view import MillView
 
-Call = Callable[[AsyncClient], Awaitable[dict[str, Any]]]
+Call = Callable[[AsyncClient], Awaitable[BaseModel]]
 
 QUIT_RELEASE_S = 2.0
 """At most this long is spent giving control back when quitting (s)."""
@@ -47,7 +49,7 @@ class Commanding(MillView):
             self.notify(message, title=what, severity=severity, timeout=8.0, markup=False)
             self.redraw_state()
             return False
-        ramp = result.get("duration_s")
+        ramp = result.duration_s if isinstance(result, CommandOut) else None
         self.notify(f"accepted{f', ramp {ramp:.1f} s' if ramp else ''}", title=what, timeout=3.0)
         self.redraw_state()
         return True
@@ -90,9 +92,8 @@ class Commanding(MillView):
     def action_set(self) -> None:
         """Open the setpoint dialog, prefilled with the present targets."""
         s = self.status
-        temp = s.get("furnace_target_c")
-        modal = SetpointsModal(self.link.check, float(s.get("target_rotary_rpm") or 0.0),
-                               float(s.get("target_vibration_rpm") or 0.0), temp)
+        modal = SetpointsModal(self.link.check, (s.target_rotary_rpm if s else None) or 0.0,
+                               (s.target_vibration_rpm if s else None) or 0.0, s.furnace_target_c if s else None)
         self.push_screen(modal, self._set_chosen)
 
     def _set_chosen(self, request: SetRequest | None) -> None:
@@ -119,8 +120,8 @@ class Commanding(MillView):
 
     def action_recipe_pause(self) -> None:
         """Pause at the next step boundary, or resume a paused or held run."""
-        state = (self.recipe.get("progress") or {}).get("state")
-        if state in ("PAUSED", "HELD"):
+        progress = self.recipe.progress if self.recipe else None
+        if progress is not None and progress.state.resumable:
             self.send("resume recipe", lambda c: c.recipe_resume())
         else:
             self.send("pause recipe", lambda c: c.recipe_pause(False))
@@ -160,14 +161,14 @@ class Commanding(MillView):
 
     async def action_quit(self) -> None:
         """Quit; ask first while the mill runs. Quitting never stops the service (except the one --sim started)."""
-        state = str(self.status.get("state", ""))
-        running = state in MOVING_STATES or bool(self.recipe.get("active"))
+        state = self.state
+        running = state in MOVING_STATES or self.recipe_active
         if not running:
             await self._leave()
             return
         after = ("The simulated service started with --sim stops with the TUI (controlled stop)." if self.sim else
                  "The service keeps the mill running; reconnect with `millctl tui`.")
-        question = f"The mill is {state}{' with a recipe running' if self.recipe.get('active') else ''}. Quit? {after}"
+        question = f"The mill is {state}{' with a recipe running' if self.recipe_active else ''}. Quit? {after}"
         self.push_screen(ConfirmModal(question), self._quit_answered)
 
     def _quit_answered(self, answer: bool | None) -> None:

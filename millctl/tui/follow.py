@@ -14,10 +14,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from typing import Any
 
 from textual.css.query import NoMatches
 
+from millctl.api import EventOut, StatusOut
+from millctl.client import StreamItem
 from millctl.tui.link import LINK_ERRORS, STREAM_SILENCE_S
 from millctl.tui.view import MillView
 
@@ -48,8 +49,8 @@ class Following(MillView):
         """Learn who we talk to, the envelope, the status and the events we missed."""
         client = self.link.client
         service = await client.service()
-        if service.get("started_unix") != self.service_started:
-            self.service_started = service.get("started_unix")
+        if service.started_unix != self.service_started:
+            self.service_started = service.started_unix
             self.last_seq = 0
             self.link.client.lease_id = None  # a lease does not outlive its service
         self.apply_envelope(await client.envelope(points=161))
@@ -57,8 +58,9 @@ class Following(MillView):
         self.apply_control(await client.control_state())
         self.apply_recipe(await client.recipe())
         events = await client.events(after=self.last_seq, limit=BACKFILL_EVENTS)
-        for event in events.get("events", []):
+        for event in events.events:
             self.apply_event(event, live=False)
+        client.last_event_id = self.last_seq  # the stream goes on from here: no event is missed in between
         self.show_offline(None)
 
     async def _follow(self) -> None:
@@ -90,16 +92,13 @@ class Following(MillView):
                     return
                 self._take(item)
 
-    def _take(self, item: dict[str, Any]) -> None:
-        data = item.get("data")
-        if not isinstance(data, dict):
-            return
-        if item.get("event") == "status":
-            self.apply_status(data)
+    def _take(self, item: StreamItem) -> None:
+        if isinstance(item, StatusOut):
+            self.apply_status(item)
             if not self.online:
                 self.show_offline(None)
-        elif item.get("event") == "event":
-            self.apply_event(data, live=True)
+        elif isinstance(item, EventOut):
+            self.apply_event(item, live=True)
 
     async def _poll(self) -> None:
         """Refresh the lease holder and recipe progress; renew our lease while we hold it."""

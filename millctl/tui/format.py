@@ -4,17 +4,21 @@ from __future__ import annotations
 
 from typing import Any
 
-STATE_STYLE = {
-    "DISCONNECTED": "bold white on grey37",
-    "DISABLED": "bold black on grey70",
-    "ARMED": "bold black on yellow",
-    "RUNNING": "bold black on green",
-    "STOPPING": "bold black on dark_orange",
-    "TRIPPED": "bold white on red",
-}
-"""Rich style of each controller state (millctl.controller.ControllerState values)."""
+from millctl.api import ControllerState
 
-MOVING_STATES = frozenset({"RUNNING", "STOPPING"})
+S = ControllerState
+
+STATE_STYLE: dict[ControllerState, str] = {
+    S.DISCONNECTED: "bold white on grey37",
+    S.DISABLED: "bold black on grey70",
+    S.ARMED: "bold black on yellow",
+    S.RUNNING: "bold black on green",
+    S.STOPPING: "bold black on dark_orange",
+    S.TRIPPED: "bold white on red",
+}
+"""Rich style of each controller state."""
+
+MOVING_STATES = frozenset({S.RUNNING, S.STOPPING})
 """States in which the drives may be turning (quitting asks first)."""
 
 
@@ -35,14 +39,14 @@ def duration(seconds: float | None) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
-def state_style(state: str) -> str:
-    """The style a controller state is shown in."""
-    return STATE_STYLE.get(state, "bold")
+def state_style(state: ControllerState | None) -> str:
+    """The style a controller state is shown in (plain bold before the first status)."""
+    return STATE_STYLE.get(state, "bold") if state is not None else "bold"
 
 
-def e2e_errors(counts: dict[str, Any]) -> int:
+def e2e_errors(counts: dict[str, int]) -> int:
     """E2E frames that were not fresh and intact (every classification but ``ok`` and ``ok-some-lost``)."""
-    return sum(int(n) for kind, n in counts.items() if kind not in ("ok", "ok-some-lost"))
+    return sum(n for kind, n in counts.items() if kind not in ("ok", "ok-some-lost"))
 
 
 __all__ = ["MOVING_STATES", "STATE_STYLE", "duration", "e2e_errors", "num", "state_style"]

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import AsyncGenerator, Awaitable, Callable
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import httpx
 from textual.notifications import SeverityLevel
 
+from millctl.api import CheckOut, CommandOut, LeaseOut
 from millctl.client import (
     AsyncClient,
     ControlHeld,
@@ -23,6 +24,7 @@ from millctl.client import (
     RequestInvalid,
     ServiceRefused,
     ServiceUnavailable,
+    StreamItem,
 )
 from millctl.errors import MillctlError
 
@@ -39,7 +41,7 @@ STREAM_SILENCE_S = 5.0
 def describe(exc: BaseException) -> tuple[str, SeverityLevel]:
     """A one-line message for the operator and a notification severity for an error from the service."""
     if isinstance(exc, InterlockRefusal):
-        details = "; ".join(str(r.get("reason", "")) for r in exc.refusals if r.get("reason"))
+        details = "; ".join(r.reason for r in exc.refusals if r.reason)
         return f"refused by the interlock: {details or exc.reason}", "error"
     if isinstance(exc, ControlHeld):
         holder = exc.holder
@@ -68,7 +70,7 @@ class ServiceLink:
         """Whether this TUI holds a lease (as far as it knows)."""
         return self.client.lease_id is not None
 
-    async def take_control(self, force: bool = False) -> dict[str, Any]:
+    async def take_control(self, force: bool = False) -> LeaseOut:
         """Take the lease (or renew ours); a lapsed lease of ours is simply taken anew."""
         try:
             return await self.client.take_control(force)
@@ -90,16 +92,16 @@ class ServiceLink:
         await self.take_control()
         return await call(self.client)
 
-    async def estop(self) -> dict[str, Any]:
+    async def estop(self) -> CommandOut:
         """Emergency stop: no lease needed, sent straight away."""
         return await self.client.estop()
 
-    async def check(self, rotary_rpm: float, vibration_rpm: float, temp_c: float | None) -> dict[str, Any]:
+    async def check(self, rotary_rpm: float, vibration_rpm: float, temp_c: float | None) -> CheckOut:
         """The interlock's verdict on a point (nothing is commanded)."""
         return await self.client.check(rotary_rpm, vibration_rpm, temp_c)
 
-    async def stream(self) -> AsyncGenerator[dict[str, Any], None]:
-        """Status and event items from the service until it ends the stream."""
+    async def stream(self) -> AsyncGenerator[StreamItem, None]:
+        """Status and event items from the service until it ends the stream (resuming after the last event seen)."""
         async for item in self.client.stream():
             yield item
 

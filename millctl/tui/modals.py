@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from rich.text import Text
 from textual import work
@@ -21,10 +21,11 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Input, Label, Static
 
+from millctl.api import CheckOut
 from millctl.errors import MillctlError
 
-Checker = Callable[[float, float, float | None], Awaitable[dict[str, Any]]]
-"""``check(rotary_rpm, vibration_rpm, temp_c)`` → the service's verdict dict."""
+Checker = Callable[[float, float, float | None], Awaitable[CheckOut]]
+"""``check(rotary_rpm, vibration_rpm, temp_c)`` → the service's verdict."""
 
 
 @dataclass(frozen=True)
@@ -105,11 +106,11 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
         self.refresh_check()
 
     @work(exclusive=True, group="check")
-    async def refresh_check(self) -> dict[str, Any] | None:
+    async def refresh_check(self) -> CheckOut | None:
         """Ask the service for the limit at the typed ω_v and its verdict on the typed point; show both."""
         return await self._check(show_ok=True)
 
-    async def _check(self, show_ok: bool) -> dict[str, Any] | None:
+    async def _check(self, show_ok: bool) -> CheckOut | None:
         limit, verdict = self.query_one("#limit", Static), self.query_one("#verdict", Static)
         try:
             request = self.fields()
@@ -121,16 +122,16 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
         except MillctlError as exc:
             verdict.update(Text(f"cannot check with the service, nothing will be sent: {exc}", style="bold red"))
             return None
-        limit_rpm = result.get("omega_r_limit_rpm")
+        limit_rpm = result.limit_rotary_rpm
         limit_text = "none" if limit_rpm is None else f"{limit_rpm:.1f} rpm"
         limit.update(Text.assemble(("limit at ω_v = ", "dim"), f"{request.vibration_rpm:g} rpm: ",
                                    (f"ω_r ≤ {limit_text}", "bold cyan")))
-        if result.get("ok"):
-            margin = result.get("margin_rpm")
+        if result.ok:
+            margin = result.margin_rpm
             verdict.update(Text(f"inside the envelope{'' if margin is None else f', margin {margin:.1f} rpm'}",
                                 style="green") if show_ok else "")
         else:
-            verdict.update(Text(f"refused: {result.get('reason')}", style="bold red"))
+            verdict.update(Text(f"refused: {result.reason}", style="bold red"))
         return result
 
     async def action_send(self) -> None:
@@ -141,7 +142,7 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
             self.query_one("#verdict", Static).update(Text(str(exc), style="bold red"))
             return
         result = await self._check(show_ok=True)
-        if result is not None and result.get("ok"):
+        if result is not None and result.ok:
             self.dismiss(request)
 
     def action_cancel(self) -> None:

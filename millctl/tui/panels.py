@@ -1,20 +1,19 @@
 """The main screen's panels: drives, furnace, envelope, physics, link health, controller and recipe.
 
-Each panel takes the service's status dict (``GET /v1/status``, see
-:class:`millctl.controller.status.Status`) in :meth:`show`; none of them
-talks to the service itself.
+Each panel takes the service's status (:class:`millctl.api.StatusOut`) in
+:meth:`show`; none of them talks to the service itself.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from typing import Any
 
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import Sparkline, Static
 
+from millctl.api import ControlOut, EnvelopeOut, RecipeOut, StatusOut
 from millctl.tui.format import duration, e2e_errors, num, state_style
 from millctl.tui.plot import Curve, render_plot
 
@@ -52,15 +51,15 @@ class DrivePanel(TrendPanel):
         super().__init__(title, id=id)
         self.axis = axis
 
-    def show(self, status: dict[str, Any]) -> None:
+    def show(self, status: StatusOut) -> None:
         """Update from a status."""
         a = self.axis
-        measured = status.get(f"measured_{a}_rpm")
+        measured = getattr(status, f"measured_{a}_rpm")
         text = Text.assemble(
             ("measured ", "dim"), (num(measured, ".1f", " rpm"), "bold"), "\n",
-            ("setpoint ", "dim"), num(status.get(f"setpoint_{a}_rpm"), ".1f"),
-            (" → target ", "dim"), num(status.get(f"target_{a}_rpm"), ".1f", " rpm"), "\n",
-            ("torque ", "dim"), num(status.get(f"{a}_torque_nm"), ".2f", " N·m"),
+            ("setpoint ", "dim"), num(getattr(status, f"setpoint_{a}_rpm"), ".1f"),
+            (" → target ", "dim"), num(getattr(status, f"target_{a}_rpm"), ".1f", " rpm"), "\n",
+            ("torque ", "dim"), num(getattr(status, f"{a}_torque_nm"), ".2f", " N·m"),
         )
         self.set_content(text, measured)
 
@@ -68,15 +67,15 @@ class DrivePanel(TrendPanel):
 class FurnacePanel(TrendPanel):
     """The furnace: temperature, ramped setpoint and target, heater duty, with a temperature trend."""
 
-    def show(self, status: dict[str, Any]) -> None:
+    def show(self, status: StatusOut) -> None:
         """Update from a status."""
-        temp = status.get("furnace_temp_c")
-        target = status.get("furnace_target_c")
-        heater = status.get("heater_pct")
-        on = status.get("heater_on")
+        temp = status.furnace_temp_c
+        target = status.furnace_target_c
+        heater = status.heater_pct
+        on = status.heater_on
         text = Text.assemble(
             ("measured ", "dim"), (num(temp, ".1f", " °C"), "bold"), "\n",
-            ("setpoint ", "dim"), num(status.get("furnace_setpoint_c"), ".1f"),
+            ("setpoint ", "dim"), num(status.furnace_setpoint_c, ".1f"),
             (" → target ", "dim"), num(target, ".1f", " °C") if target is not None else ("heater off", "dim"), "\n",
             ("heater ", "dim"), num(heater, ".0f", " %"), ("" if on is None else (" on" if on else " off"), "dim"),
         )
@@ -90,16 +89,16 @@ class EnvelopePanel(Static):
         super().__init__(id=id, classes="panel")
         self.border_title = "envelope  ω_r ↑ rpm  (● measured, ○ target)"
         self.curve: Curve | None = None
-        self.envelope: dict[str, Any] = {}
-        self.status: dict[str, Any] = {}
+        self.envelope: EnvelopeOut | None = None
+        self.status: StatusOut | None = None
 
-    def set_envelope(self, envelope: dict[str, Any]) -> None:
+    def set_envelope(self, envelope: EnvelopeOut) -> None:
         """Take the service's limit curve (``/v1/envelope``)."""
         self.envelope = envelope
         self.curve = Curve.from_envelope(envelope)
         self.redraw()
 
-    def show(self, status: dict[str, Any]) -> None:
+    def show(self, status: StatusOut) -> None:
         """Update from a status."""
         self.status = status
         self.redraw()
@@ -114,24 +113,25 @@ class EnvelopePanel(Static):
         if curve is None:
             self.update(Text("waiting for the service’s envelope…", style="dim"), layout=False)
             return
-        point = None
-        if s.get("measured_vibration_rpm") is not None and s.get("measured_rotary_rpm") is not None:
-            point = (float(s["measured_vibration_rpm"]), float(s["measured_rotary_rpm"]))
-        target = None
-        if s.get("target_vibration_rpm") is not None:
-            target = (float(s["target_vibration_rpm"]), float(s["target_rotary_rpm"]))
+        point = target = None
+        if s is not None and s.measured_vibration_rpm is not None and s.measured_rotary_rpm is not None:
+            point = (s.measured_vibration_rpm, s.measured_rotary_rpm)
+        if s is not None and s.target_vibration_rpm is not None and s.target_rotary_rpm is not None:
+            target = (s.target_vibration_rpm, s.target_rotary_rpm)
         width = max(self.content_size.width, 20)
         height = max(self.content_size.height - 3, 4)
         text = render_plot(curve, width, height, point, target)
         text.append("\n")
-        w_v = s.get("setpoint_vibration_rpm")
+        w_v = s.setpoint_vibration_rpm if s else None
         text.append_text(Text.assemble(
-            ("limit ", "dim"), (f"ω_r ≤ {num(s.get('limit_rotary_rpm'))} rpm", "bold"),
-            (f" at ω_v = {num(w_v)} rpm", "dim"), ("   margin ", "dim"), num(s.get("margin_rpm"), ".1f", " rpm"),
+            ("limit ", "dim"), (f"ω_r ≤ {num(s.limit_rotary_rpm if s else None)} rpm", "bold"),
+            (f" at ω_v = {num(w_v)} rpm", "dim"),
+            ("   margin ", "dim"), num(s.margin_rpm if s else None, ".1f", " rpm"),
         ))
-        law = s.get("law", self.envelope.get("law", "?"))
-        margin = s.get("margin", self.envelope.get("margin"))
-        if s and not s.get("law_is_every_cycle", True):
+        env = self.envelope
+        law = s.law if s else (env.law if env else "?")
+        margin = s.margin if s else (env.margin if env else None)
+        if s is not None and not s.law_is_every_cycle:
             text.append(f"\n⚠ at this ω_v {law} is not the every-cycle bound (docs/model.md)", style="bold yellow")
         start = curve.first_not_every_cycle_rpm()
         text.append(f"\nlaw {law} · margin {num(margin, '.0%')} · ", style="dim")
@@ -145,38 +145,38 @@ class EnvelopePanel(Static):
 class PhysicsPanel(Static):
     """Physics telemetry from the node: detached or pinned, detachment angle θ_d, impact rate and energy, shear."""
 
-    def show(self, status: dict[str, Any]) -> None:
+    def show(self, status: StatusOut) -> None:
         """Update from a status."""
-        detached = status.get("detached")
+        detached = status.detached
         regime = "—" if detached is None else ("detached (flying)" if detached else "pinned to the wall")
         self.update(layout=False, content=Text.assemble(
             ("rods ", "dim"), (regime, "bold"), "\n",
-            ("θ_d ", "dim"), num(status.get("theta_d_deg"), ".1f", "°"), "\n",
-            ("impacts ", "dim"), num(status.get("impact_rate_hz"), ".1f", " Hz"), "\n",
-            ("impact energy ", "dim"), num(status.get("impact_energy_mj"), ".2f", " mJ"), "\n",
-            ("shear ", "dim"), num(status.get("shear_kpa"), ".1f", " kPa"),
+            ("θ_d ", "dim"), num(status.theta_d_deg, ".1f", "°"), "\n",
+            ("impacts ", "dim"), num(status.impact_rate_hz, ".1f", " Hz"), "\n",
+            ("impact energy ", "dim"), num(status.impact_energy_mj, ".2f", " mJ"), "\n",
+            ("shear ", "dim"), num(status.shear_kpa, ".1f", " kPa"),
         ))
 
 
 class LinkPanel(Static):
     """Node link health per frame kind: age, E2E errors and score; dim when stale, red when dead."""
 
-    def show(self, status: dict[str, Any]) -> None:
+    def show(self, status: StatusOut) -> None:
         """Update from a status."""
         text = Text()
-        for name, link in sorted(status.get("link", {}).items()):
-            age, bound = link.get("age_s"), float(link.get("stale_after_s") or 1.0)
+        for name, link in sorted(status.link.items()):
+            age, bound = link.age_s, link.stale_after_s or 1.0
             dead = age is None or age > DEAD_FACTOR * bound
-            style = "bold red" if dead else ("dim" if link.get("stale") else "")
-            errors = e2e_errors(link.get("e2e", {}))
-            flag = " DEAD" if dead else (" STALE" if link.get("stale") else "")
-            score = link.get("e2e_score", 0)
+            style = "bold red" if dead else ("dim" if link.stale else "")
+            errors = e2e_errors(link.e2e)
+            flag = " DEAD" if dead else (" STALE" if link.stale else "")
+            score = link.e2e_score
             short = name.removesuffix("Telemetry")
             line = f"{short[:10]:<10} {num(age, '.2f', ' s'):>8}  e2e err {errors} score {score}{flag}\n"
             text.append(line, style=style)
-        invalid = status.get("invalid_frames", 0)
+        invalid = status.invalid_frames
         text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
-        if receive_errors := status.get("receive_errors", 0):
+        if receive_errors := status.receive_errors:
             text.append(f"  receive errors {receive_errors}", style="red")
         self.update(text, layout=False)
 
@@ -184,28 +184,28 @@ class LinkPanel(Static):
 class StatePanel(Static):
     """Controller and node state, node faults, control holder, and the running recipe (step i/N, time left)."""
 
-    def show(self, status: dict[str, Any], control: dict[str, Any], mine: bool, recipe: dict[str, Any]) -> None:
+    def show(self, status: StatusOut | None, control: ControlOut | None, mine: bool,
+             recipe: RecipeOut | None) -> None:
         """Update from a status, the lease (``/v1/control``), whether we hold it, and ``/v1/recipe``."""
-        state = str(status.get("state", "—"))
-        text = Text.assemble(("controller ", "dim"), (f" {state} ", state_style(state)))
-        faults = " ".join(status.get("node_faults") or []) or "no faults"
-        text.append_text(Text.assemble("\n", ("node ", "dim"), f"{status.get('node_state') or '—'}  {faults}"))
-        holder = control.get("holder")
+        state = status.state if status else None
+        text = Text.assemble(("controller ", "dim"), (f" {state or '—'} ", state_style(state)))
+        faults = " ".join(status.node_faults if status else []) or "no faults"
+        node = status.node_state if status else None
+        text.append_text(Text.assemble("\n", ("node ", "dim"), f"{node or '—'}  {faults}"))
+        holder = control.holder if control else None
         who = "you (this terminal)" if mine else (holder or "nobody")
-        expired = " (lease expired)" if control.get("expired") else ""
+        expired = " (lease expired)" if control and control.expired else ""
         text.append_text(Text.assemble("\n", ("control ", "dim"), (who + expired, "bold" if mine else "")))
-        progress = recipe.get("progress") or {}
-        if progress:
-            active = recipe.get("active")
+        progress = recipe.progress if recipe else None
+        if recipe is not None and progress is not None:
+            resumes = " — p resumes" if recipe.active and progress.state.resumable else ""
             text.append_text(Text.assemble(
-                "\n", ("recipe ", "dim"), (str(progress.get("recipe", "?")), "bold"),
-                f"  {progress.get('state', '?')}"
-                + (" — p resumes" if active and progress.get("state") in ("PAUSED", "HELD") else ""), "\n",
-                ("step ", "dim"), f"{progress.get('step', 0)}/{progress.get('steps', 0)} {progress.get('kind') or ''}",
-                ("  left ", "dim"), duration(progress.get("remaining_s")),
+                "\n", ("recipe ", "dim"), (progress.recipe, "bold"), f"  {progress.state}{resumes}", "\n",
+                ("step ", "dim"), f"{progress.step}/{progress.steps} {progress.kind or ''}",
+                ("  left ", "dim"), duration(progress.remaining_s),
             ))
-            if progress.get("reason"):
-                text.append(f"\n{progress['reason']}", style="dim")
+            if progress.reason:
+                text.append(f"\n{progress.reason}", style="dim")
         else:
             text.append_text(Text.assemble("\n", ("recipe ", "dim"), "none (n runs one)"))
         self.update(text, layout=False)

@@ -13,9 +13,10 @@ import bisect
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any
 
 from rich.text import Text
+
+from millctl.api import EnvelopeOut
 
 BRAILLE_BASE = 0x2800
 _DOT_BITS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))
@@ -33,15 +34,15 @@ class Curve:
     vibration_max_rpm: float
 
     @classmethod
-    def from_envelope(cls, envelope: dict[str, Any]) -> Curve:
+    def from_envelope(cls, envelope: EnvelopeOut) -> Curve:
         """Build from the service's ``/v1/envelope`` answer."""
-        points = envelope["points"]
+        points = envelope.points
         return cls(
-            omega_v_rpm=tuple(float(p["omega_v_rpm"]) for p in points),
-            limit_rpm=tuple(None if p["omega_r_limit_rpm"] is None else float(p["omega_r_limit_rpm"]) for p in points),
-            every_cycle=tuple(bool(p["law_is_every_cycle"]) for p in points),
-            rotary_max_rpm=float(envelope["rotary_max_rpm"]),
-            vibration_max_rpm=float(envelope["vibration_max_rpm"]),
+            omega_v_rpm=tuple(p.vibration_rpm for p in points),
+            limit_rpm=tuple(p.limit_rotary_rpm for p in points),
+            every_cycle=tuple(p.law_is_every_cycle for p in points),
+            rotary_max_rpm=envelope.rotary_max_rpm,
+            vibration_max_rpm=envelope.vibration_max_rpm,
         )
 
     def limit_at(self, omega_v_rpm: float) -> float:

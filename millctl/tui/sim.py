@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 from types import TracebackType
 
+from millctl.api import ControllerState
 from millctl.errors import BusError
 
 START_TIMEOUT_S = 30.0
@@ -67,7 +68,7 @@ class SimService:
                 raise BusError(f"the simulated service exited with {self.proc.returncode}: {self.output()[-800:]}")
             if Path(self.socket_path).exists():
                 with contextlib.suppress(BusError), Client(self.socket_path, name="tui-sim") as client:
-                    if client.status()["state"] != "DISCONNECTED":
+                    if client.status().state is not ControllerState.DISCONNECTED:
                         return
             time.sleep(0.1)
         self.stop()

@@ -20,6 +20,7 @@ from textual.screen import Screen
 from textual.widgets import Footer, RichLog, Static
 from textual.worker import Worker, WorkerState
 
+from millctl.api import ControllerState, ControlOut, EnvelopeOut, EventKind, EventOut, RecipeOut, StatusOut
 from millctl.tui.format import state_style
 from millctl.tui.link import ServiceLink
 from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
@@ -27,10 +28,15 @@ from millctl.tui.styles import CSS
 
 log = logging.getLogger(__name__)
 
-NOTIFY_KINDS: dict[str, SeverityLevel] = {
-    "trip": "error", "refusal": "warning", "state": "information", "control": "information", "service": "information",
+NOTIFY_KINDS: dict[EventKind, SeverityLevel] = {
+    EventKind.TRIP: "error", EventKind.REFUSAL: "warning", EventKind.STATE: "information",
+    EventKind.CONTROL: "information", EventKind.SERVICE: "information",
 }
 """Event kinds shown as notifications when they happen (the log shows every kind), with their severity."""
+EVENT_STYLE: dict[EventKind, str] = {
+    EventKind.TRIP: "bold red", EventKind.REFUSAL: "yellow", EventKind.STATE: "cyan", EventKind.CONTROL: "magenta",
+}
+"""How each kind of event is coloured in the log."""
 
 
 class MillView(App[None]):
@@ -46,12 +52,12 @@ class MillView(App[None]):
         self.link = ServiceLink(socket_path, config=config)
         self.live = live
         self.sim = sim
-        self.status: dict[str, Any] = {}
-        self.control: dict[str, Any] = {}
-        self.recipe: dict[str, Any] = {}
+        self.status: StatusOut | None = None
+        self.control: ControlOut | None = None
+        self.recipe: RecipeOut | None = None
         self.online = False
         self.last_seq = 0
-        self._applies: tuple[str, bool, bool] | None = None
+        self._applies: tuple[ControllerState | None, bool, bool] | None = None
 
     def compose(self) -> ComposeResult:
         """The main screen."""
@@ -96,7 +102,17 @@ class MillView(App[None]):
         return self.screen_stack[0]
 
     # ------------------------------------------------------------------ what the follower (or a test) feeds in
-    def apply_status(self, status: dict[str, Any]) -> None:
+    @property
+    def state(self) -> ControllerState | None:
+        """The controller's state as last seen (None before the first status)."""
+        return self.status.state if self.status is not None else None
+
+    @property
+    def recipe_active(self) -> bool:
+        """True while a recipe run is in progress."""
+        return self.recipe is not None and self.recipe.active
+
+    def apply_status(self, status: StatusOut) -> None:
         """Show a status (``GET /v1/status`` or a stream item)."""
         self.status = status
         self.main_screen.query_one("#rotary", DrivePanel).show(status)
@@ -108,35 +124,34 @@ class MillView(App[None]):
         self.show_trip(status)
         self.redraw_state()
 
-    def apply_envelope(self, envelope: dict[str, Any]) -> None:
+    def apply_envelope(self, envelope: EnvelopeOut) -> None:
         """Take the service's limit curve (``GET /v1/envelope``)."""
         self.main_screen.query_one("#envelope", EnvelopePanel).set_envelope(envelope)
 
-    def apply_control(self, control: dict[str, Any]) -> None:
+    def apply_control(self, control: ControlOut) -> None:
         """Show who holds control (``GET /v1/control``)."""
         self.control = control
         self.redraw_state()
 
-    def apply_recipe(self, recipe: dict[str, Any]) -> None:
+    def apply_recipe(self, recipe: RecipeOut) -> None:
         """Show recipe progress (``GET /v1/recipe``)."""
         self.recipe = recipe
         self.redraw_state()
 
-    def apply_event(self, event: dict[str, Any], *, live: bool) -> None:
+    def apply_event(self, event: EventOut, *, live: bool) -> None:
         """Log one recorded event (once, by sequence number); ``live`` ones of some kinds also notify."""
-        seq = int(event.get("seq", 0))
-        if seq <= self.last_seq:
+        if event.seq <= self.last_seq:
             return
-        self.last_seq = seq
-        kind, message = str(event.get("kind", "?")), str(event.get("message", ""))
-        stamp = time.strftime("%H:%M:%S", time.localtime(float(event.get("t") or 0.0)))
-        style = {"trip": "bold red", "refusal": "yellow", "state": "cyan", "control": "magenta"}.get(kind, "")
-        line = Text.assemble((f"{stamp} ", "dim"), (f"{kind:<8} ", style), (f"{event.get('source', '')}: ", "dim"),
-                             message)
+        self.last_seq = event.seq
+        kind, message = event.kind, event.message
+        stamp = time.strftime("%H:%M:%S", time.localtime(event.t))
+        style = EVENT_STYLE.get(kind, "")
+        line = Text.assemble((f"{stamp} ", "dim"), (f"{kind:<8} ", style), (f"{event.source}: ", "dim"), message)
         self.main_screen.query_one("#events", RichLog).write(line)
         severity = NOTIFY_KINDS.get(kind)
         if live and severity is not None:
-            self.notify(message, title=kind, severity=severity, timeout=10.0 if kind == "trip" else 5.0, markup=False)
+            timeout = 10.0 if kind is EventKind.TRIP else 5.0
+            self.notify(message, title=kind, severity=severity, timeout=timeout, markup=False)
 
     # ------------------------------------------------------------------ banners and the top bar
     def show_offline(self, reason: str | None) -> None:
@@ -148,15 +163,15 @@ class MillView(App[None]):
         banner.set_class(reason is not None, "shown")
         self.redraw_top()
 
-    def show_trip(self, status: dict[str, Any]) -> None:
+    def show_trip(self, status: StatusOut) -> None:
         """The persistent trip banner: first cause and what to do, while the controller is TRIPPED."""
-        tripped = status.get("state") == "TRIPPED"
+        tripped = status.state is ControllerState.TRIPPED
         banner = self.main_screen.query_one("#trip", Static)
         if tripped:
-            node = status.get("node_first_fault")
+            node = status.node_first_fault
             node_text = f" (node first fault: {node})" if node and node != "NONE" else ""
             banner.update(Text.assemble(
-                ("⚠ TRIPPED — first cause: ", "bold"), (str(status.get("trip_cause") or "unknown"), "bold"),
+                ("⚠ TRIPPED — first cause: ", "bold"), (status.trip_cause or "unknown", "bold"),
                 node_text, "\nWhat to do: wait until both drives stand still, remove the cause, then press r to reset "
                 "and a to arm again (docs/safety.md, “How to recover”).",
             ))
@@ -170,14 +185,14 @@ class MillView(App[None]):
 
     def redraw_top(self) -> None:
         """State, control and connection in one line; the footer's keys follow state, connection and recipe."""
-        state = str(self.status.get("state", "—"))
-        applies = (state, self.online, bool(self.recipe.get("active")))
+        state = self.state
+        applies = (state, self.online, self.recipe_active)
         if applies != self._applies:
             self._applies = applies
             self.refresh_bindings()
-        holder = "you" if self.link.holds_control else (self.control.get("holder") or "nobody")
+        holder = "you" if self.link.holds_control else ((self.control.holder if self.control else None) or "nobody")
         where = "online" if self.online else "OFFLINE"
-        text = Text.assemble(("millctl ", "bold"), (f" {state} ", state_style(state)), ("  control ", "dim"),
+        text = Text.assemble(("millctl ", "bold"), (f" {state or '—'} ", state_style(state)), ("  control ", "dim"),
                              holder, ("  service ", "dim"), (where, "green" if self.online else "bold red"),
                              (f" {self.link.socket_path}", "dim"), ("  (simulated mill)" if self.sim else "", "cyan"))
         self.main_screen.query_one("#topbar", Static).update(text, layout=False)

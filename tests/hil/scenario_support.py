@@ -176,13 +176,21 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = ("watchdog_timeout_s", "min_stale_s", "setpoint_refresh_s", "startup_grace_s", "setpoint_period_s")
+VM_SCALED_KEYS = (
+    "watchdog_timeout_s",
+    "challenge_lifetime_s",
+    "min_stale_s",
+    "setpoint_refresh_s",
+    "startup_grace_s",
+    "setpoint_period_s",
+)
 """Periods and timeouts of the config multiplied by the VM's measured slowdown there.
 
 Python under emulation runs several times slower (``tests/vm/run`` measures how much), so it cannot
 meet the host's periods: frames arrive in bursts, and a setpoint step that the node allows per
-``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh and start-up
-grace bounds would expire between two slow ticks. Scaling them all by one factor keeps their ratios.
+``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh, start-up
+grace and challenge bounds would expire between two slow ticks. Scaling them all by one factor
+keeps their ratios.
 """
 
 
@@ -433,8 +441,8 @@ class Mill:
         return self.transport.timeout(seconds)
 
     def status(self) -> dict[str, Any]:
-        """The controller's status through the API."""
-        return self.client.status()
+        """The controller's status through the API, as plain data."""
+        return self.client.status().model_dump(mode="json")
 
     def wait_state(self, state: str, timeout_s: float = 10.0) -> dict[str, Any]:
         """Wait until the controller reports ``state``; return that status (a failure names the last one seen)."""

@@ -117,10 +117,10 @@ def test_sigkill_of_the_service_mid_run_the_node_stops_the_mill_and_records_surv
     socket_path = tmp_path / "mill.sock"
     wait_for(socket_path.exists, transport.timeout(30.0), f"the service socket\n{spawn.output(service)}")
     with Client(socket_path, name="hil") as client:
-        wait_for(lambda: client.status()["state"] == "DISABLED", transport.timeout(20.0), "the node to be seen")
+        wait_for(lambda: client.status().state == "DISABLED", transport.timeout(20.0), "the node to be seen")
         client.take_control()
         client.arm()
-        wait_for(lambda: client.status()["state"] == "ARMED", transport.timeout(10.0), "ARMED")
+        wait_for(lambda: client.status().state == "ARMED", transport.timeout(10.0), "ARMED")
         client.set_speeds(60.0, 300.0)
         wait_for(watcher.running, transport.timeout(30.0), "the mill to run (seen by the third listener)")
 

@@ -120,7 +120,7 @@ def start_service(
         if service.socket.exists():
             try:
                 with service.client() as client:
-                    state = client.status()["state"]
+                    state = client.status().state
             except Exception as exc:  # not answering yet: keep the reason for the message
                 last = f"status request failed: {exc}"
             else:

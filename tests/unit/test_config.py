@@ -98,5 +98,5 @@ def test_config_show_json(capsys):
     import json
 
     assert main(["--config", str(CONFIG_FILE), "config", "show", "--json"]) == ExitCode.OK
-    data = json.loads(capsys.readouterr().out)
+    data = json.loads(capsys.readouterr().out)["result"]
     assert data["config"]["interlock"]["margin"] == 0.05

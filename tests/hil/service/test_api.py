@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import os
 import shutil
 import signal
@@ -12,9 +13,10 @@ from pathlib import Path
 
 import pytest
 
+from millctl.api import ControllerState, EventKind, EventOut, RunState, StatusOut
 from millctl.cli import main
 from millctl.client import AsyncClient, ControlHeld, InterlockRefusal, RequestInvalid, ServiceRefused
-from millctl.errors import ExitCode, InterlockError
+from millctl.errors import ExitCode, InterlockError, InvalidInputError
 from millctl.records import read_records
 from tests.support.service import Service, wait_for
 
@@ -34,33 +36,32 @@ def test_status_and_service_show_the_config_law_and_margin(service: Service) -> 
         status = client.status()
         info = client.service()
         envelope = client.envelope(points=5)
-    assert status["state"] == "DISABLED"
-    assert status["node_state"] == "DISABLED"
-    assert info["config_path"] == str(service.config)
-    assert info["embedded_node"] is True
-    assert (info["law"], info["margin"]) == (status["law"], status["margin"])
-    assert len(envelope["points"]) == 5
-    assert envelope["points"][0]["omega_v_rpm"] == 0.0
+    assert status.state is ControllerState.DISABLED
+    assert status.node_state == "DISABLED"
+    assert info.config_path == str(service.config)
+    assert info.embedded_node is True
+    assert (info.law, info.margin) == (status.law, status.margin)
+    assert len(envelope.points) == 5
+    assert envelope.points[0].vibration_rpm == 0.0
 
 
 def test_arm_set_refuse_stop_and_the_records_explain_it(service: Service) -> None:
     with service.client("operator") as client, client.control():
-        client.arm()
-        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+        assert client.arm().state is ControllerState.ARMED  # the answer reports the state after the command
         accepted = client.set_speeds(180.0, 800.0)
-        assert accepted["duration_s"] > 0.0
+        assert accepted.duration_s is not None and accepted.duration_s > 0.0
+        assert accepted.state is ControllerState.RUNNING
         with pytest.raises(InterlockRefusal) as refused:
             client.set_speeds(250.0, 800.0)
         assert refused.value.exit_code is ExitCode.INTERLOCK
         assert refused.value.code == "interlock_refused"
         assert "exceeds the limit" in refused.value.reason
-        (omega_r,) = [r for r in refused.value.refusals if r["quantity"] == "omega_r"]
-        assert omega_r["value"] == 250.0
-        assert omega_r["limit"] < 250.0
+        (omega_r,) = [r for r in refused.value.refusals if r.quantity == "omega_r"]
+        assert omega_r.value == 250.0
+        assert omega_r.limit is not None and omega_r.limit < 250.0
         client.stop()
-        wait_for(lambda: client.status()["state"] == "ARMED", 30.0, "the controlled stop to end")
-        client.disarm()
-        wait_for(lambda: client.status()["state"] == "DISABLED", what="DISABLED")
+        wait_for(lambda: client.status().state == "ARMED", 30.0, "the controlled stop to end")
+        assert client.disarm().state is ControllerState.DISABLED
     records = list(read_records(service.records / "events.jsonl"))
     refusals = [r for r in records if r["kind"] == "refusal"]
     assert refusals, "the refusal is recorded"
@@ -84,25 +85,25 @@ def test_one_client_holds_control_and_others_are_told_who(service: Service) -> N
                 bob.take_control(force=True)  # a live lease is never taken away
             with pytest.raises(ControlHeld):
                 bob.arm()  # no lease
-            assert bob.control_state()["holder"].startswith("api:alice@")
+            assert bob.control_state().holder.startswith("api:alice@")
         finally:
             alice.release_control()
         with bob.control():
-            assert bob.control_state()["holder"].startswith("api:bob@")
-        assert bob.control_state()["held"] is False
+            assert bob.control_state().holder.startswith("api:bob@")
+        assert bob.control_state().held is False
 
 
 def test_estop_needs_no_lease_and_reset_clears_it(service: Service) -> None:
     with service.client("holder") as holder, service.client("bystander") as bystander, holder.control():
         result = bystander.estop()
-        assert result["state"] == "TRIPPED"
-        assert "E-stop" in bystander.status()["trip_cause"]
+        assert result.state is ControllerState.TRIPPED
+        assert "E-stop" in bystander.status().trip_cause
         with pytest.raises(ServiceRefused) as refused:
             holder.arm()  # tripped: wrong state, with the cause
         assert refused.value.code == "wrong_state"
-        wait_for(lambda: holder.status()["node_state"] == "FAULT", what="the node to report its E-stop fault")
+        wait_for(lambda: holder.status().node_state == "FAULT", what="the node to report its E-stop fault")
         wait_for(lambda: _reset_ok(holder), 10.0, "reset to be accepted")
-        wait_for(lambda: holder.status()["state"] == "DISABLED", what="DISABLED after reset")
+        wait_for(lambda: holder.status().state == "DISABLED", what="DISABLED after reset")
 
 
 def _reset_ok(client: object) -> bool:
@@ -130,18 +131,24 @@ def test_stream_sends_status_and_events(service: Service) -> None:
     with service.client("watcher") as watcher, service.client("actor") as actor:
         items = watcher.stream(count=50)
         first = next(items)
-        assert first["event"] == "status" and first["data"]["state"] == "DISABLED"
+        assert isinstance(first, StatusOut) and first.state is ControllerState.DISABLED
         actor.take_control()
         actor.release_control()
-        kinds = []
+        seen = []
         for item in items:
-            kinds.append(item["event"])
-            if item["event"] == "event" and item["data"]["kind"] == "control":
+            if isinstance(item, EventOut) and item.kind is EventKind.CONTROL:
+                seen.append(item.seq)
                 break
-        assert "event" in kinds
         items.close()
+        assert seen and watcher.last_event_id == seen[-1]
         after = watcher.events(after=0)
-        assert after["last_seq"] >= len(after["events"]) > 0
+        assert after.last_seq >= len(after.events) > 0
+        # what happens while the watcher is away comes first when it streams again (Last-Event-ID)
+        actor.take_control()
+        actor.release_control()
+        missed = [e.seq for e in watcher.events(after=seen[-1]).events]
+        resumed = [item.seq for item in watcher.stream(count=len(missed) + 4) if isinstance(item, EventOut)]
+        assert resumed[: len(missed)] == missed
 
 
 def _probe(socket_path: Path, *prefix: str) -> str:
@@ -167,7 +174,7 @@ def test_a_second_serve_on_the_same_socket_refuses_to_start(
     assert str(service.socket) in stderr
     assert f"pid {service.proc.pid}" in stderr
     with service.client() as client:
-        assert client.status()["state"] == "DISABLED"  # the first one is untouched
+        assert client.status().state == "DISABLED"  # the first one is untouched
 
 
 def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
@@ -175,15 +182,20 @@ def test_cli_set_beyond_the_limit_is_refused_with_the_reason(
 ) -> None:
     assert main(["--config", str(service.config), "arm"]) == ExitCode.OK
     with service.client() as client:
-        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+        wait_for(lambda: client.status().state == "ARMED", what="ARMED")
     capsys.readouterr()
     refused = main(["--config", str(service.config), "set", "--rot-rpm", "250", "--vib-rpm", "800"])
     assert refused == ExitCode.INTERLOCK
     assert "exceeds the limit" in capsys.readouterr().err
     assert main(["--config", str(service.config), "status", "--json"]) == ExitCode.OK
-    assert '"state": "ARMED"' in capsys.readouterr().out
+    document = json.loads(capsys.readouterr().out)
+    assert (document["schema"], document["ok"], document["result"]["status"]["state"]) == (1, True, "ARMED")
+    assert main(["--config", str(service.config), "set", "--rot-rpm", "250", "--vib-rpm", "800", "--json"]) == 2
+    error = json.loads(capsys.readouterr().out)["error"]
+    assert error["code"] == "interlock_refused" and error["exit_code"] == 2
+    assert error["refusals"][0]["flag"] == "--rot-rpm"
     with service.client() as client, client.control():
-        assert client.status()["state"] == "ARMED"
+        assert client.status().state == "ARMED"
         client.disarm()
 
 
@@ -193,16 +205,16 @@ def test_cli_set_with_a_refused_furnace_target_applies_no_part(
     """Issue 15 item 7: `set --rot-rpm 150 --vib-rpm 800 --temp-c 5000` is refused whole; the speeds stay."""
     assert main(["--config", str(service.config), "arm"]) == ExitCode.OK
     with service.client() as client:
-        wait_for(lambda: client.status()["state"] == "ARMED", what="ARMED")
+        wait_for(lambda: client.status().state is ControllerState.ARMED, what="ARMED")
     capsys.readouterr()
     refused = main(["--config", str(service.config), "set", "--rot-rpm", "150", "--vib-rpm", "800", "--temp-c", "5000"])
     assert refused == ExitCode.INTERLOCK
     assert "furnace setpoint 5000.0 °C is outside" in capsys.readouterr().err
     with service.client() as client, client.control():
         status = client.status()
-        assert (status["target_rotary_rpm"], status["target_vibration_rpm"]) == (0.0, 0.0)
-        assert status["furnace_target_c"] is None
-        assert status["state"] == "ARMED"
+        assert (status.target_rotary_rpm, status.target_vibration_rpm) == (0.0, 0.0)
+        assert status.furnace_target_c is None
+        assert status.state is ControllerState.ARMED
         client.disarm()
 
 
@@ -216,46 +228,49 @@ def test_a_recipe_runs_pauses_and_aborts_and_a_bad_one_is_refused(service: Servi
         with pytest.raises(InterlockRefusal) as refused:
             client.recipe_run(bad)
         assert refused.value.code == "recipe_refused"
-        assert any(r["quantity"] == "omega_r" and r["value"] == 250.0 for r in refused.value.refusals)
-        with pytest.raises(RequestInvalid):
+        assert any(r.quantity == "omega_r" and r.value == 250.0 for r in refused.value.refusals)
+        with pytest.raises(InvalidInputError):  # read by the client: the service opens no path
             client.recipe_run(tmp_path / "missing.toml")
+        with pytest.raises(RequestInvalid) as invalid:  # sent by content: the service names what is wrong
+            client.recipe_run_text("broken.toml", "[recipe]\nname = 3\n")
+        assert "broken.toml" in str(invalid.value) and invalid.value.field == "text"
         started = client.recipe_run(DEMO)
-        assert started["active"] is True and started["progress"]["steps"] == 4
+        assert started.active is True and started.progress is not None and started.progress.steps == 4
         with pytest.raises(ServiceRefused):
             client.recipe_run(DEMO)  # one run at a time
         with pytest.raises(ServiceRefused):
             client.set_speeds(10.0, 10.0)  # the recipe drives the mill
-        wait_for(lambda: client.recipe()["progress"]["state"] == "RUNNING", what="the run to start")
-        assert client.recipe_pause(now=True)["progress"]["state"] == "PAUSED"
-        assert client.recipe_resume()["progress"]["state"] == "RUNNING"
+        wait_for(lambda: client.recipe().progress.state == "RUNNING", what="the run to start")
+        assert client.recipe_pause(now=True).progress.state == "PAUSED"
+        assert client.recipe_resume().progress.state == "RUNNING"
         client.recipe_abort()
-        wait_for(lambda: not client.recipe()["active"], 30.0, "the aborted run to stop")
-        progress = client.recipe()["progress"]
-        assert progress["state"] == "ABORTED"
-        assert Path(progress["record"]).exists()
+        wait_for(lambda: not client.recipe().active, 30.0, "the aborted run to stop")
+        progress = client.recipe().progress
+        assert progress is not None and progress.state is RunState.ABORTED
+        assert Path(progress.record).exists()
         client.disarm()
-        wait_for(lambda: client.status()["state"] == "DISABLED", what="DISABLED")
+        wait_for(lambda: client.status().state == "DISABLED", what="DISABLED")
 
 
 async def test_the_async_client_reads_and_commands(service: Service) -> None:
     async with AsyncClient(service.socket, name="async") as client:
-        assert (await client.status())["state"] == "DISABLED"
+        assert (await client.status()).state == "DISABLED"
         async with client.control():
-            assert (await client.control_state())["holder"].startswith("api:async@")
+            assert (await client.control_state()).holder.startswith("api:async@")
             with pytest.raises(InterlockRefusal):
                 await _arm_and_refuse(client)
         stream = client.stream(count=2)
         first = await anext(stream)
-        assert first["event"] == "status"
+        assert isinstance(first, StatusOut)
         await stream.aclose()
 
 
 async def _arm_and_refuse(client: AsyncClient) -> None:
     verdict = await client.check(250.0, 800.0)
-    assert verdict["ok"] is False and verdict["refusals"][0]["quantity"] == "omega_r"
+    assert verdict.ok is False and verdict.refusals[0].quantity == "omega_r"
     await client.arm()
     for _ in range(200):
-        if (await client.status())["state"] == "ARMED":
+        if (await client.status()).state == "ARMED":
             break
         await asyncio.sleep(0.05)
     try:
@@ -269,4 +284,5 @@ def test_sigterm_stops_cleanly_removes_the_socket_and_records_it(service: Servic
     assert not service.socket.exists()
     records = list(read_records(service.records / "events.jsonl"))
     assert records[-1]["kind"] == "service" and "SIGTERM" in records[-1]["message"]
-    assert Path(service.records / "bus" / "bus.log").stat().st_size > 0
+    (bus_log,) = (service.records / "bus").glob("bus_*.log")  # this session's
+    assert bus_log.stat().st_size > 0

@@ -46,7 +46,7 @@ def test_run_prints_a_summary_and_writes_a_complete_record(service):
     assert result.returncode == 0, result.stderr
     import json
 
-    summary = json.loads(result.stdout)
+    summary = json.loads(result.stdout)["result"]
     assert summary["state"] == "DONE" and summary["steps"] == 2
     records = list(read_records(summary["record"]))
     assert records[0]["event"] == "start" and records[-1]["event"] == "end" and records[-1]["status"] == "DONE"
@@ -58,7 +58,7 @@ def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after():
         config = fast_mill(directory)
         result = run_millctl(config, "recipe", "run", str(recipe(directory)), timeout_s=120)
         assert result.returncode == 0, result.stderr
-        assert "starting the embedded service" in result.stderr
+        assert "starting a SIMULATED mill" in result.stderr
         assert "recipe short: DONE" in result.stdout
         assert not (directory / "mill.sock").exists()
 
@@ -67,10 +67,10 @@ def test_a_bad_recipe_is_refused_before_anything_moves(service):
     bad = service.config.parent / "bad.toml"
     bad.write_text('[recipe]\nname = "bad"\n[[steps]]\nkind = "ramp"\nrotary_rpm = 250\nvibration_rpm = 800\n')
     result = run_millctl(service.config, "recipe", "run", str(bad))
-    assert result.returncode == 1
+    assert result.returncode == 2  # refused, as every refusal
     assert "step 1 at t = 0.0 s: ω_r = 250.0 rpm exceeds the limit" in result.stderr
     with service.client() as client:
-        assert client.status()["setpoint_rotary_rpm"] == 0.0
+        assert client.status().setpoint_rotary_rpm == 0.0
 
 
 def test_ctrl_c_once_pauses_twice_aborts_with_exit_2():
@@ -84,13 +84,13 @@ def test_ctrl_c_once_pauses_twice_aborts_with_exit_2():
                 cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             )
             with running.client() as client:
-                wait_for(lambda: (client.recipe().get("progress") or {}).get("step") == 2, 60, "the hold step")
+                wait_for(lambda: (p := client.recipe().progress) is not None and p.step == 2, 60, "the hold step")
                 proc.send_signal(signal.SIGINT)
-                wait_for(lambda: client.recipe()["progress"]["state"] == "PAUSED", 10, "the pause")
+                wait_for(lambda: client.recipe().progress.state == "PAUSED", 10, "the pause")
                 proc.send_signal(signal.SIGINT)
                 out, err = proc.communicate(timeout=60)
                 assert proc.returncode == 2, err
-                assert client.recipe()["progress"]["state"] == "ABORTED"
+                assert client.recipe().progress.state == "ABORTED"
                 assert "ABORTED" in out
         finally:
             if proc.poll() is None:
@@ -106,8 +106,8 @@ def test_run_record_is_complete_up_to_a_sigkill():
             result = run_millctl(running.config, "recipe", "run", "--detach", str(recipe(directory, hold_s=120.0)))
             assert result.returncode == 0, result.stderr
             with running.client() as client:
-                wait_for(lambda: client.recipe()["progress"]["step"] == 2, 60, "the hold step")
-                path = client.recipe()["progress"]["record"]
+                wait_for(lambda: client.recipe().progress.step == 2, 60, "the hold step")
+                path = client.recipe().progress.record
         finally:
             running.stop(signal.SIGKILL)
         records = list(read_records(path))  # every line parses

@@ -29,6 +29,7 @@ def test_tcp_needs_the_token_and_a_stale_socket_is_replaced() -> None:
     with private_dir() as directory:
         token_file = directory / "token"
         token_file.write_text(TOKEN + "\n")
+        token_file.chmod(0o600)
         port = _free_port()
         write_config(directory, tcp_port=port, token_file=str(token_file))
         stale = socket.socket(socket.AF_UNIX)
@@ -45,9 +46,9 @@ def test_tcp_needs_the_token_and_a_stale_socket_is_replaced() -> None:
             with Client(base_url=url, token="wrong-token-0000000000") as intruder, pytest.raises(AccessDenied):
                 intruder.status()
             with Client(base_url=url, token=TOKEN) as client:
-                assert client.status()["state"] == "DISABLED"
+                assert client.status().state == "DISABLED"
             with service.client() as local:  # the Unix socket needs no token
-                assert local.status()["state"] == "DISABLED"
+                assert local.status().state == "DISABLED"
         finally:
             assert service.stop() == 0
 

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 from textual.widgets import Input, Static
 
+from millctl.api import StatusOut
 from millctl.tui import MillApp
 from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal
 from tests.support.tui import Service, until
@@ -31,20 +32,20 @@ def text_of(app: MillApp, selector: str) -> str:
 def speed_requests(service: Service) -> list[dict[str, Any]]:
     """Every speed request that reached the controller, accepted (``command``) or refused (``refusal``)."""
     with service.client() as client:
-        events = client.events(after=0, limit=2000)["events"]
-    return [e for e in events if e["kind"] in ("command", "refusal") and "rotary_rpm" in (e.get("data") or {})]
+        events = client.events(after=0, limit=2000).events
+    return [e.model_dump() for e in events if e.kind in ("command", "refusal") and "rotary_rpm" in e.data]
 
 
-def status_of(service: Service) -> dict[str, Any]:
+def status_of(service: Service) -> StatusOut:
     """The service's status, read directly."""
     with service.client() as client:
         return client.status()
 
 
-def at_rest(status: dict[str, Any]) -> bool:
+def at_rest(status: StatusOut | None) -> bool:
     """Both drives commanded to and measured at standstill, no ramp left."""
     speeds = ("setpoint_rotary_rpm", "setpoint_vibration_rpm", "measured_rotary_rpm", "measured_vibration_rpm")
-    return all(status.get(key) == 0.0 for key in speeds) and status.get("ramp_remaining_s") == 0.0
+    return status is not None and all(getattr(status, key) == 0.0 for key in speeds) and status.ramp_remaining_s == 0.0
 
 
 async def fill(app: MillApp, rot: str, vib: str) -> SetpointsModal:
@@ -59,11 +60,11 @@ async def fill(app: MillApp, rot: str, vib: str) -> SetpointsModal:
 async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> None:
     app = MillApp(str(fault_service.socket))
     async with app.run_test(size=SIZE, notifications=True) as pilot:
-        await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
+        await until(pilot, lambda: app.online and app.state == "DISABLED", "the first status")
         await pilot.press("a")
-        await until(pilot, lambda: app.status.get("state") == "ARMED", "ARMED")
+        await until(pilot, lambda: app.state == "ARMED", "ARMED")
         with fault_service.client() as client:
-            assert "tui" in str(client.control_state()["holder"])
+            assert "tui" in str(client.control_state().holder)
 
         # an over-limit point: refused in the dialog with the interlock's reason; nothing sent
         await pilot.press("s")
@@ -76,14 +77,15 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
         assert "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm" in verdict
         assert app.screen is modal
         assert speed_requests(fault_service) == []
-        assert status_of(fault_service)["target_rotary_rpm"] == 0.0
+        assert status_of(fault_service).target_rotary_rpm == 0.0
 
         # a point inside is sent
         await fill(app, "20", "300")
         await pilot.press("enter")
         await until(pilot, lambda: not isinstance(app.screen, SetpointsModal), "the dialog to close")
-        await until(pilot, lambda: app.status.get("target_vibration_rpm") == 300.0, "the new target")
-        await until(pilot, lambda: (app.status.get("measured_vibration_rpm") or 0.0) > 250.0, "ω_v near 300 rpm")
+        await until(pilot, lambda: (app.status and app.status.target_vibration_rpm) == 300.0, "the new target")
+        await until(pilot, lambda: ((app.status and app.status.measured_vibration_rpm) or 0.0) > 250.0,
+                    "ω_v near 300 rpm")
 
         # quitting while the mill runs asks first; "no" keeps the TUI
         await pilot.press("q")
@@ -94,10 +96,10 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
 
         # a vibration stall trips; the banner shows the first cause and the way out
         fault_service.proc.send_signal(signal.SIGUSR1)  # a SimFault VIB_STALL frame on the service's bus
-        await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the trip", timeout_s=30.0)
+        await until(pilot, lambda: app.state == "TRIPPED", "the trip", timeout_s=30.0)
         banner = app.query_one("#trip", Static)
         assert banner.has_class("shown")
-        cause = status_of(fault_service)["trip_cause"]
+        cause = status_of(fault_service).trip_cause
         assert cause and cause in text_of(app, "#trip")
         assert "STALL" in text_of(app, "#trip")
         assert "press r to reset" in text_of(app, "#trip")
@@ -106,14 +108,14 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
         await until(pilot, lambda: at_rest(app.status), "the end of the controlled stop", timeout_s=30.0)
         fault_service.proc.send_signal(signal.SIGUSR2)  # SimFault CLEAR: the vibration rotor is free again
         deadline = time.monotonic() + 30.0
-        while app.status.get("state") != "DISABLED" and time.monotonic() < deadline:
+        while app.state != "DISABLED" and time.monotonic() < deadline:
             # as an operator would: reset at standstill, and again if it was refused (the freed rotor can
             # read a rpm or two for a moment after the clear: "reset refused: drives not at standstill")
             await until(pilot, lambda: at_rest(status_of(fault_service)), "standstill after the clear", timeout_s=30.0)
             await pilot.press("r")
             with contextlib.suppress(pytest.fail.Exception):
-                await until(pilot, lambda: app.status.get("state") == "DISABLED", "DISABLED", timeout_s=3.0)
-        assert app.status.get("state") == "DISABLED"
+                await until(pilot, lambda: app.state == "DISABLED", "DISABLED", timeout_s=3.0)
+        assert app.state == "DISABLED"
         assert not app.query_one("#trip", Static).has_class("shown")
         assert app.is_running
 
@@ -121,12 +123,12 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
 async def test_estop_works_inside_a_dialog(fault_service: Service) -> None:
     app = MillApp(str(fault_service.socket))
     async with app.run_test(size=SIZE, notifications=True) as pilot:
-        await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
+        await until(pilot, lambda: app.online and app.state == "DISABLED", "the first status")
         await pilot.press("n")
         await until(pilot, lambda: isinstance(app.screen, RecipeModal), "the recipe dialog")
         await pilot.press("ctrl+x")
-        await until(pilot, lambda: app.status.get("state") == "TRIPPED", "the E-stop trip")
-        assert "E-stop" in status_of(fault_service)["trip_cause"]
+        await until(pilot, lambda: app.state == "TRIPPED", "the E-stop trip")
+        assert "E-stop" in status_of(fault_service).trip_cause
         assert "first cause" in text_of(app, "#trip")
 
 
@@ -140,9 +142,9 @@ async def test_control_held_by_another_client(fault_service: Service) -> None:
             await until(pilot, lambda: any("holds control" in n.message for n in app._notifications),
                         "the refusal naming the holder")
             assert not app.link.holds_control
-            assert status_of(fault_service)["state"] == "DISABLED"
+            assert status_of(fault_service).state == "DISABLED"
 
             other.release_control()
             await pilot.press("a")
-            await until(pilot, lambda: app.status.get("state") == "ARMED", "ARMED once control is free")
+            await until(pilot, lambda: app.state == "ARMED", "ARMED once control is free")
             await until(pilot, lambda: "you (this terminal)" in text_of(app, "#state"), "us as the holder")

@@ -22,7 +22,7 @@ async def test_service_goes_away_and_comes_back(service_dir: Path) -> None:
     app = MillApp(str(service.socket))
     try:
         async with app.run_test(size=(120, 40)) as pilot:
-            await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the first status")
+            await until(pilot, lambda: app.online and app.state == "DISABLED", "the first status")
             assert sum("service started" in line for line in log_lines(app)) == 1
 
             service.stop()
@@ -36,7 +36,7 @@ async def test_service_goes_away_and_comes_back(service_dir: Path) -> None:
             assert app.is_running
 
             service = start_service(service_dir)
-            await until(pilot, lambda: app.online and app.status.get("state") == "DISABLED", "the reconnection",
+            await until(pilot, lambda: app.online and app.state == "DISABLED", "the reconnection",
                         timeout_s=30.0)
             assert not app.query_one("#offline", Static).has_class("shown")
             await until(pilot, lambda: sum("service started" in line for line in log_lines(app)) == 2,

@@ -12,10 +12,10 @@ def test_sim_service_starts_on_a_private_socket_and_stops_cleanly() -> None:
     with SimService() as sim:
         directory = sim.directory
         with Client(sim.socket_path, name="test") as client:
-            assert client.status()["state"] == "DISABLED"
+            assert client.status().state == "DISABLED"
             service = client.service()
-        assert service["embedded_node"] is True
-        assert Path(service["records_dir"]).is_relative_to(directory)
-        assert sim.proc is not None and service["pid"] == sim.proc.pid
+        assert service.embedded_node is True
+        assert Path(service.records_dir).is_relative_to(directory)
+        assert sim.proc is not None and service.pid == sim.proc.pid
     assert sim.proc is not None and sim.proc.returncode == 0  # SIGTERM: controlled stop, exit 0
     assert not directory.exists()

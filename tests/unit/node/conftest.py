@@ -82,7 +82,15 @@ class Bench:
         self.ctl_bus.send(self.codec.encode(message, counter))
 
     def heartbeat(self) -> None:
-        self.send(Heartbeat(ControllerState.RUNNING))
+        """A heartbeat as the controller sends it: echoing the challenge of the latest NodeStatus received."""
+        self.send(Heartbeat(ControllerState.RUNNING, self.challenge()))
+
+    def challenge(self) -> int:
+        """The challenge of the latest NodeStatus received (0 before the first)."""
+        for decoded in reversed(self.received):
+            if isinstance(decoded.message, NodeStatus):
+                return decoded.message.challenge
+        return 0
 
     def command(self, code: CommandCode) -> None:
         self.send(Command(code))
@@ -139,6 +147,8 @@ class Bench:
     def arm(self) -> None:
         self.point = SpeedPoint(0.0, 0.0)
         self.step(0.1)
+        self.heartbeat()  # echoing a challenge the node has issued by now, whatever the heartbeat period
+        self._next_heartbeat_s = self.clock.now() + self.heartbeat_period_s
         self.command(CommandCode.ARM)
         self.step(self.tick_s)
 

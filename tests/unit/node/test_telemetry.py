@@ -31,11 +31,13 @@ def test_drive_telemetry_reports_the_measured_speeds(bench: Bench) -> None:
 def test_physics_telemetry_follows_the_operating_point(make_bench: Callable[..., Bench]) -> None:
     bench = make_bench(physics_worker="inline")
     bench.step(0.2)
-    assert bench.latest(PhysicsTelemetry).detached is False
+    at_rest = bench.latest(PhysicsTelemetry)
+    assert at_rest.detached is False and at_rest.no_slip_violated is False
     bench.arm()
     bench.ramp_to(120.0, 600.0)
     physics = bench.latest(PhysicsTelemetry)
     assert physics.detached is True
+    assert physics.no_slip_violated is True  # issue 20: the carried rod slides before it leaves
     assert 0.0 < physics.theta_d_deg < 360.0
     assert physics.impact_rate_hz > 0.0 and physics.impact_energy_mj > 0.0 and physics.shear_kpa > 0.0
     assert bench.node.physics.computations < bench.node.tick_count / 5

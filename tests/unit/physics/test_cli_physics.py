@@ -19,7 +19,7 @@ def _run(capsys, *args):
 def test_json_report_corrected(capsys, config):
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
     assert code == 0
-    report = json.loads(out.out)
+    report = json.loads(out.out)["result"]
     assert report["variant"] == "corrected" and not report["pinned"]
     detach, imp, summary = report["first_detachment"], report["first_impact"], report["summary"]
     # Relations derived by hand, not by the code under test:
@@ -50,7 +50,7 @@ def test_legacy_method_and_phases(capsys):
     args = ("--rot-rpm", "100", "--vib-rpm", "800", "--method", "legacy", "--dt", "1e-4")
     code, out = _run(capsys, *args, "--theta0-deg", "-120", "--alpha0-deg", "45", "--json")
     assert code == 0
-    report = json.loads(out.out)
+    report = json.loads(out.out)["result"]
     assert report["method"] == "legacy" and report["first_impact"] is not None
 
 
@@ -59,3 +59,14 @@ def test_negative_speed_is_invalid_input(capsys):
         _run(capsys, "--rot-rpm=-5", "--vib-rpm", "800")
     assert exc.value.code == 1
     assert "≥ 0" in capsys.readouterr().err
+
+
+def test_no_slip_flag_in_json_and_text(capsys):
+    """Issue 20: the report says where the carried rod needs |F_t|/N > μ (−52.4° at 200/800, α0 = 0)."""
+    code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
+    assert code == 0
+    ns = json.loads(out.out)["result"]["no_slip"]
+    assert ns["violated"] is True and ns["friction"] == pytest.approx(0.3)
+    assert ns["onset_theta_deg"] == pytest.approx(-52.37, abs=0.01) and ns["onset_time_s"] < ns["arc_end_s"]
+    code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected")
+    assert code == 0 and "no-slip violated" in out.out and "θ = -52.37°" in out.out

@@ -91,7 +91,7 @@ def test_bus_load_at_500_kbit_is_within_the_15_percent_target() -> None:
 
 def test_bus_load_command_prints_the_figure(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--config", str(REPO / "config" / "mill.toml"), "bus", "load", "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capsys.readouterr().out)["result"]
     assert report["bitrate_bit_s"] == 500_000
     assert report["within_target"] is True
     assert report["total_load"] == pytest.approx(bus_load(CODEC, 500_000).total_load)
@@ -102,7 +102,7 @@ def test_bus_load_command_prints_the_figure(capsys: pytest.CaptureFixture[str]) 
 
 def test_bus_frames_command_lists_every_frame(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["bus", "frames", "--json"]) == 0
-    rows = json.loads(capsys.readouterr().out)
+    rows = json.loads(capsys.readouterr().out)["result"]
     assert [r["name"] for r in rows][:3] == ["EStop", "Command", "Heartbeat"]
     assert all(r["cycle_ms"] for r in rows if r["name"] in ("Heartbeat", "Setpoints", "NodeStatus"))
 

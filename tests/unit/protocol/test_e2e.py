@@ -128,3 +128,55 @@ def test_receiver_rejects_nonsense_limits() -> None:
         E2EReceiver(error_limit=0)
     with pytest.raises(ValueError):
         E2EReceiver(error_limit=5, max_delta=15)
+
+
+def test_a_second_sender_answering_each_frame_with_counter_plus_one_faults_the_link() -> None:
+    """SAFETY 17: genuine c, spoof c + 1 (OK), genuine c + 1 (REPEATED) … used to keep the net score level."""
+    receiver = E2EReceiver(error_limit=5)
+    genuine = AliveCounter()
+    statuses = []
+    for _ in range(8):
+        counter = genuine.next()
+        statuses += [receiver.classify(counter, crc_ok=True), receiver.classify((counter + 1) % 16, crc_ok=True)]
+    assert receiver.score <= 1  # the net score alone stays level: the attack it could not see
+    assert receiver.faulted and receiver.sequence_score >= 5
+    reason = receiver.fault_reason()
+    assert reason is not None and "second sender" in reason and "≥ limit 5" in reason
+    assert statuses.count(E2EStatus.OK) >= 7  # every spoof was fresh: exactly why OK must not pay for REPEATED
+
+
+def test_interleaved_senders_on_one_identifier_fault_the_link() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    genuine, other = AliveCounter(), AliveCounter(start=8)
+    for _ in range(10):
+        receiver.classify(genuine.next(), crc_ok=True)
+        receiver.classify(other.next(), crc_ok=True)
+    assert receiver.faulted and receiver.sequence_score >= 5
+
+
+def test_a_second_sender_slower_than_the_decay_is_forgiven_and_a_faster_one_is_not() -> None:
+    decay = 16
+    for every, faults in ((decay + 2, False), (decay - 4, True)):
+        receiver = E2EReceiver(error_limit=5, sequence_decay_frames=decay)
+        counter = AliveCounter()
+        for i in range(40 * every):
+            value = counter.next()
+            receiver.classify(value, crc_ok=True)
+            if i % every == every - 1:
+                receiver.classify(value, crc_ok=True)  # one duplicate now and then
+        assert receiver.faulted is faults, (every, receiver.sequence_score)
+
+
+def test_sequence_score_decays_one_per_decay_frames_fresh_frames_and_clears_on_reset() -> None:
+    receiver = E2EReceiver(error_limit=3, sequence_decay_frames=4)
+    classify_all(receiver, [0, 0, 0, 0])  # three repeats
+    assert receiver.sequence_score == 3 and receiver.faulted
+    classify_all(receiver, [1, 2, 3])
+    assert receiver.sequence_score == 3
+    classify_all(receiver, [4])
+    assert receiver.sequence_score == 2 and not receiver.faulted
+    receiver.classify(4, crc_ok=True)
+    receiver.clear_scores()
+    assert (receiver.score, receiver.sequence_score, receiver.last_counter) == (0, 0, 4)
+    with pytest.raises(ValueError, match="sequence_decay_frames 0"):
+        E2EReceiver(error_limit=5, sequence_decay_frames=0)

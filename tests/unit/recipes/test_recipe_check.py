@@ -68,7 +68,7 @@ def test_invalid_recipe_is_named(tmp_path, capsys, body, pattern):
 def test_step_the_envelope_forbids(tmp_path, capsys):
     path = write(tmp_path, "[[steps]]\nkind = 'ramp'\nrotary_rpm = 250\nvibration_rpm = 800\n")
     code, err = check(path, capsys)
-    assert code == ExitCode.INVALID_INPUT
+    assert code == ExitCode.INTERLOCK  # a refusal exits 2 from every command, as `set` does
     assert re.search(r"step 1 at t = 0\.0 s: ω_r = 250\.0 rpm exceeds the limit 190\.0 rpm .*law paper-eq9", err)
 
 
@@ -78,7 +78,7 @@ def test_linear_ramp_crossing_the_limit_midway(tmp_path, capsys):
         "[[steps]]\nkind = 'ramp'\nrotary_rpm = 230\nvibration_rpm = 1200\npath = 'linear'\n"
     )
     code, err = check(write(tmp_path, body), capsys)
-    assert code == ExitCode.INVALID_INPUT
+    assert code == ExitCode.INTERLOCK
     assert re.search(r"step 2 at t = 3\.5 s: linear ramp at t = [\d.]+ s of [\d.]+ s .*exceeds the limit", err), err
     # the same ends with the default (sequenced) path are fine
     code, err = check(write(tmp_path, body.replace("path = 'linear'\n", "")), capsys)
@@ -102,7 +102,7 @@ def test_every_problem_is_listed(tmp_path):
 
 def test_wait_furnace_needs_a_setpoint(tmp_path, capsys):
     code, err = check(write(tmp_path, "[[steps]]\nkind = 'wait_furnace'\n"), capsys)
-    assert code == ExitCode.INVALID_INPUT and "no furnace setpoint" in err
+    assert code == ExitCode.INTERLOCK and "no furnace setpoint" in err  # refused by the pre-flight, as by the service
 
 
 def test_missing_file_is_a_recipe_error(tmp_path):
@@ -112,7 +112,7 @@ def test_missing_file_is_a_recipe_error(tmp_path):
 
 def test_plan_json_has_timeline_and_total(capsys):
     assert main(["--config", str(CONFIG_FILE), "recipe", "plan", "--json", str(REPO / "config/recipes/demo.toml")]) == 0
-    data = json.loads(capsys.readouterr().out)
+    data = json.loads(capsys.readouterr().out)["result"]
     assert [s["kind"] for s in data["steps"]] == ["ramp", "hold", "ramp", "hold"]
     assert data["steps"][2]["start_s"] == pytest.approx(data["steps"][1]["start_s"] + 5.0)
     assert data["total_s"] == pytest.approx(data["steps"][-1]["start_s"] + 10.0 + data["stop_s"])

@@ -51,7 +51,7 @@ def test_api_errors_map_to_exceptions_with_their_exit_codes(
         raise_for_error(_response(status, body), "service socket /x")
     assert raised.value.exit_code is exit_code  # type: ignore[attr-defined]
     if isinstance(raised.value, InterlockRefusal):
-        assert raised.value.refusals[0]["limit"] == 190.0
+        assert raised.value.refusals[0].limit == 190.0
     if isinstance(raised.value, ControlHeld):
         assert raised.value.holder == "api:tui"
     if isinstance(raised.value, RequestInvalid):

@@ -8,6 +8,7 @@ from typing import Any
 
 import httpx
 
+from millctl.api import ControlOut, EnvelopeOut, EventOut, RecipeOut, StatusOut
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.service import ServiceRuntime, create_app
@@ -17,7 +18,7 @@ T0_UNIX = 1_790_000_000.0
 """A fixed wall-clock time for the events (shown in UTC by the snapshot test)."""
 
 
-def envelope_answer(points: int = 161) -> dict[str, Any]:
+def envelope_answer(points: int = 161) -> EnvelopeOut:
     """What ``GET /v1/envelope`` answers for the packaged config (Set A, paper eq. 9, margin 5 %).
 
     Asked of the service's own app, in-process and without a node, so the pictures show what the
@@ -35,23 +36,22 @@ def envelope_answer(points: int = 161) -> dict[str, Any]:
     finally:
         runtime.close()
     assert response.status_code == 200, response.text
-    answer: dict[str, Any] = response.json()
-    return answer
+    return EnvelopeOut.model_validate(response.json())
 
 
 def link(age_s: float, frames: int, errors: int = 0) -> dict[str, Any]:
     """One frame kind's health."""
     return {"age_s": age_s, "stale_after_s": 1.0, "stale": age_s > 1.0, "frames": frames,
             "e2e": {"ok": frames - errors, "wrong-sequence": errors} if errors else {"ok": frames},
-            "e2e_score": errors}
+            "e2e_score": errors, "e2e_sequence_score": errors}
 
 
-def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> dict[str, Any]:
+def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> StatusOut:
     """The i-th of a run near the paper's operating point: ramping up to ω_r 180, ω_v 800 rpm, furnace to 600 °C."""
     ramp = min(i / 30.0, 1.0)
     rot, vib = 180.0 * ramp, 800.0 * min(i / 20.0, 1.0)
     wobble = 1.5 * math.sin(i)
-    return {
+    return StatusOut.model_validate({
         "time_s": 100.0 + 0.25 * i, "state": state, "trip_cause": trip_cause, "node_state": state,
         "node_faults": ["STALL"] if trip_cause else [], "node_first_fault": "STALL" if trip_cause else "NONE",
         "refused_setpoints": 0, "last_refusal": "NONE",
@@ -66,16 +66,18 @@ def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> dict[s
         "detached": True, "theta_d_deg": 131.4, "impact_rate_hz": 26.7, "impact_energy_mj": 0.42, "shear_kpa": 8.1,
         "link": {"NodeStatus": link(0.03, 900), "DriveTelemetry": link(0.01, 2250),
                  "FurnaceTelemetry": link(1.6, 450), "PhysicsTelemetry": link(9.0, 90, errors=2)},
-        "invalid_frames": 0,
-    }
+        "invalid_frames": 0, "receive_errors": 0,
+        "bus_receive": {"frames": 3690, "estops": 0, "malformed": 0, "error_frames": 0, "receive_errors": 0,
+                        "capped_drains": 0, "last_error": ""},
+    })
 
 
-CONTROL = {"held": True, "holder": "api:cli@bench", "expires_in_s": 21.0, "expired": False}
-RECIPE = {"active": True, "progress": {
+CONTROL = ControlOut(held=True, holder="api:cli@bench", expires_in_s=21.0, expired=False)
+RECIPE = RecipeOut.model_validate({"active": True, "progress": {
     "run_id": "20260101T000000Z-demo", "recipe": "demo", "recipe_file": "config/recipes/demo.toml", "state": "RUNNING",
     "reason": "", "step": 3, "steps": 6, "kind": "ramp", "elapsed_s": 20.0, "step_elapsed_s": 2.0,
-    "remaining_s": 95.0, "record": "var/records/runs/x.jsonl"}}
-EVENTS = [
+    "remaining_s": 95.0, "record": "var/records/runs/x.jsonl"}})
+EVENTS = [EventOut.model_validate({"time_s": None, "data": {}, **e}) for e in [
     {"seq": 1, "t": T0_UNIX, "kind": "service", "source": "service", "message": "service started (pid 4242)"},
     {"seq": 2, "t": T0_UNIX + 2, "kind": "control", "source": "api:cli@bench", "message": "control taken by cli"},
     {"seq": 3, "t": T0_UNIX + 3, "kind": "state", "source": "controller", "message": "DISABLED → ARMED: node ARMED"},
@@ -83,5 +85,5 @@ EVENTS = [
      "message": "ramp to ω_r = 180.0 rpm, ω_v = 800.0 rpm over 12.1 s"},
     {"seq": 5, "t": T0_UNIX + 5, "kind": "refusal", "source": "api:cli@bench",
      "message": "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm"},
-]
+]]
 ENVELOPE = envelope_answer()

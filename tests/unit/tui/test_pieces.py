@@ -31,8 +31,8 @@ def test_the_plot_marks_the_operating_point_and_colours_the_law() -> None:
 
 
 def test_the_curve_is_the_services() -> None:
-    grid = ENVELOPE["points"][40]
-    assert CURVE.limit_at(grid["omega_v_rpm"]) == pytest.approx(grid["omega_r_limit_rpm"])
+    grid = ENVELOPE.points[40]
+    assert CURVE.limit_at(grid.vibration_rpm) == pytest.approx(grid.limit_rotary_rpm)
     assert CURVE.limit_at(800.0) == pytest.approx(190.0, abs=0.2)  # docs/safety.md: 0.95 × 200.0 rpm
     assert CURVE.every_cycle_at(100.0) and not CURVE.every_cycle_at(800.0)
 
