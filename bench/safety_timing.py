@@ -46,8 +46,10 @@ def _netns_ok() -> str | None:
     return None if check.returncode == 0 else f"no private network namespace: {check.stderr.strip()}"
 
 
-def hil_trials(trials: int, keyword: str = TIMING_SCENARIOS, progress: Callable[[str], None] = print) -> dict[str, Any]:
-    """Run the timing scenarios ``trials`` times; per record name: median, p99, max and the bound."""
+def hil_trials(
+    trials: int, keyword: str = TIMING_SCENARIOS, progress: Callable[[str], None] = print, suite: Path = SUITE
+) -> dict[str, Any]:
+    """Run the timing scenarios of ``suite`` ``trials`` times; per record name: median, p99, max and the bound."""
     if reason := _netns_ok():
         return {"skipped": reason}
     expr = f"udp_multicast and ({keyword})"
@@ -55,7 +57,7 @@ def hil_trials(trials: int, keyword: str = TIMING_SCENARIOS, progress: Callable[
     with tempfile.TemporaryDirectory(prefix="bench-hil-") as tmp:
         path = Path(tmp) / "timings.jsonl"
         env = dict(os.environ, MILLCTL_HIL_TIMINGS=str(path))
-        cmd = [str(IN_NETNS), sys.executable, "-m", "pytest", str(SUITE), "-q", "-p", "no:cacheprovider", "-k", expr]
+        cmd = [str(IN_NETNS), sys.executable, "-m", "pytest", str(suite), "-q", "-p", "no:cacheprovider", "-k", expr]
         for k in range(trials):
             start = time.perf_counter()
             done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
@@ -82,7 +84,7 @@ def hil_trials(trials: int, keyword: str = TIMING_SCENARIOS, progress: Callable[
             "over_bound": int((values > np.array([r["bound_s"] for r in rs])).sum()),
         }
     return {
-        "command": f"MILLCTL_HIL_TIMINGS=FILE tests/hil/in_netns .venv/bin/python -m pytest {SUITE.relative_to(ROOT)} "
+        "command": f"MILLCTL_HIL_TIMINGS=FILE tests/hil/in_netns .venv/bin/python -m pytest {suite.relative_to(ROOT)} "
         f'-q -k "{expr}"',
         "trials": trials,
         "outcomes": outcomes,

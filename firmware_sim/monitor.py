@@ -87,7 +87,7 @@ class SpeedMonitor:
         faults = self.rotary.check(m_r, reference[0], dt_s) | self.vibration.check(m_v, reference[1], dt_s)
         if not (math.isfinite(m_r) and math.isfinite(m_v)):
             return faults | FaultFlag.SENSOR
-        self.outside = 0 if self.envelope.check_measured(m_r, m_v).ok else self.outside + 1
+        self.outside = 0 if self.envelope.allows_measured(m_r, m_v) else self.outside + 1
         if self.outside >= self.debounce:
             faults |= FaultFlag.ENVELOPE
         over = (

@@ -24,6 +24,7 @@ from firmware_sim.motion import Motion
 from firmware_sim.telemetry import PhysicsCache, PhysicsWorker, Schedule
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
+from millctl.errors import InterlockError
 from millctl.protocol import (
     NO_FAULTS,
     AliveCounter,
@@ -48,11 +49,16 @@ from millctl.protocol import (
     default_codec,
 )
 from millctl.safety import Envelope
+from millctl.safety.commands import NODE_ACCEPTS, NODE_SETPOINTS_IN, NODE_TRANSITIONS
 
 log = logging.getLogger(__name__)
 
 MOVING = (NodeState.ARMED, NodeState.RUNNING, NodeState.STOPPING)
 """States in which the heartbeat watchdog is armed."""
+
+
+class IllegalNodeTransition(InterlockError):
+    """A state change that :data:`millctl.safety.commands.NODE_TRANSITIONS` does not allow (a bug)."""
 
 
 class Node:
@@ -67,7 +73,7 @@ class Node:
         fault_injection: bool = False,
         seed: int = 0,
         codec: Codec | None = None,
-        physics_worker: PhysicsWorker = "thread",
+        physics_worker: PhysicsWorker = "inline",
     ) -> None:
         self.config = config
         self.bus = bus
@@ -241,7 +247,7 @@ class Node:
     def _arm(self, now: float) -> RefusalCode:
         if self._state is NodeState.FAULT or self._fault_bits:
             return RefusalCode.FAULT_LATCHED
-        if self._state is not NodeState.DISABLED:
+        if self._state not in NODE_ACCEPTS[CommandCode.ARM]:
             return RefusalCode.WRONG_STATE
         if not self.link.heartbeat_live(now):
             return RefusalCode.NOT_FRESH
@@ -252,7 +258,7 @@ class Node:
     def _disarm(self, now: float) -> RefusalCode:
         if self._state is NodeState.FAULT:
             return RefusalCode.FAULT_LATCHED
-        if self._state is not NodeState.ARMED:
+        if self._state not in NODE_ACCEPTS[CommandCode.DISARM]:
             return RefusalCode.WRONG_STATE
         if not self._standstill():
             return RefusalCode.NOT_STANDSTILL
@@ -267,7 +273,7 @@ class Node:
         return RefusalCode.NONE
 
     def _reset(self, now: float) -> RefusalCode:
-        if self._state is not NodeState.FAULT:
+        if self._state not in NODE_ACCEPTS[CommandCode.RESET]:
             return RefusalCode.WRONG_STATE
         if not self._standstill():
             return RefusalCode.NOT_STANDSTILL
@@ -310,12 +316,12 @@ class Node:
         if not isinstance(message, Setpoints) or not fresh:
             self._refuse(RefusalCode.E2E, "setpoints with a bad CRC or stale counter")
             return
-        refusal = {
-            NodeState.DISABLED: RefusalCode.NOT_ARMED,
-            NodeState.FAULT: RefusalCode.FAULT_LATCHED,
-            NodeState.STOPPING: RefusalCode.WRONG_STATE,
-        }.get(self._state, RefusalCode.NONE)
-        if refusal is RefusalCode.NONE:
+        refusal = RefusalCode.NONE
+        if self._state not in NODE_SETPOINTS_IN:
+            refusal = {NodeState.DISABLED: RefusalCode.NOT_ARMED, NodeState.FAULT: RefusalCode.FAULT_LATCHED}.get(
+                self._state, RefusalCode.WRONG_STATE
+            )
+        else:
             refusal = self.motion.check(message, now)
         if refusal is not RefusalCode.NONE:
             self._refuse(refusal, f"setpoints {message}")
@@ -330,7 +336,13 @@ class Node:
     # -- state and faults -----------------------------------------------------------------------------
 
     def _set_state(self, state: NodeState, reason: str) -> None:
+        """Move along :data:`~millctl.safety.commands.NODE_TRANSITIONS` only (anything else is a bug)."""
         if state is not self._state:
+            if state not in NODE_TRANSITIONS[self._state]:
+                raise IllegalNodeTransition(
+                    f"node cannot go {self._state.name} → {state.name} ({reason}); allowed: "
+                    f"{', '.join(sorted(s.name for s in NODE_TRANSITIONS[self._state]))}"
+                )
             log.info("node %s → %s: %s", self._state.name, state.name, reason)
             self._state = state
 
@@ -444,4 +456,4 @@ def _lowest(flags: FaultFlag) -> FaultFlag:
     return FaultFlag(value & -value)
 
 
-__all__ = ["MOVING", "Node"]
+__all__ = ["MOVING", "IllegalNodeTransition", "Node"]

@@ -29,14 +29,18 @@ RECORD_MODE = 0o640
 QUEUE_SIZE = 20_000
 """Records waiting for the writer thread; past this, new ones are counted as lost (never waited for)."""
 
+RECOVERED_AFTER_S = 5.0
+"""Writes count as working again only after this long without a failure (s): a nearly full disk that takes
+one small record and refuses the next does not flap the warning."""
+
 
 class RecordQueue:
     """One writer thread for the record files of a service: callers enqueue and never wait for the disk.
 
     A write that fails (a full or failing disk) is retried no more: the record
     is counted as lost, ``failing`` names the error, and ``on_change(failing)``
-    is called once when writes start failing and once when they succeed again
-    (SAFETY 23: the control loop never sees the disk).
+    is called once when writes start failing and once when they have succeeded
+    again for RECOVERED_AFTER_S (SAFETY 23: the control loop never sees the disk).
     """
 
     def __init__(self, on_change: Callable[[str | None], None] | None = None, size: int = QUEUE_SIZE) -> None:
@@ -45,6 +49,7 @@ class RecordQueue:
         self.failing: str | None = None
         self.lost = 0
         self.written = 0
+        self._failed_at_s = 0.0
         self._thread = threading.Thread(target=self._run, name="millctl-records", daemon=True)
         self._thread.start()
 
@@ -57,6 +62,7 @@ class RecordQueue:
 
     def _failed(self, reason: str) -> None:
         self.lost += 1
+        self._failed_at_s = time.monotonic()
         if self.failing is None:
             self.failing = reason
             self._notify(reason)
@@ -78,10 +84,10 @@ class RecordQueue:
                     job()
                 except (OSError, ValueError) as exc:
                     log.error("record write failed: %s", exc)
-                    self._failed(f"records cannot be written: {exc}")
+                    self._failed(str(exc))
                 else:
                     self.written += 1
-                    if self.failing is not None:
+                    if self.failing is not None and time.monotonic() - self._failed_at_s >= RECOVERED_AFTER_S:
                         self.failing = None
                         self._notify(None)
             finally:
@@ -228,4 +234,12 @@ def read_records(path: str | Path) -> Iterator[dict[str, Any]]:
             raise
 
 
-__all__ = ["QUEUE_SIZE", "RECORD_MODE", "RecordQueue", "RecordWriter", "last_record", "read_records"]
+__all__ = [
+    "QUEUE_SIZE",
+    "RECORD_MODE",
+    "RECOVERED_AFTER_S",
+    "RecordQueue",
+    "RecordWriter",
+    "last_record",
+    "read_records",
+]

@@ -22,10 +22,12 @@ COMMAND_MODULES = (
     "millctl.cli.limits_cmd",
     "millctl.cli.physics_cmd",
     "millctl.cli.recipe_cmd",
+    "millctl.cli.study_cmd",
     "millctl.cli.bus_cmd",
     "millctl.cli.service_cmd",
     "millctl.cli.client_cmd",
     "millctl.cli.tui_cmd",
+    "millctl.cli.report_cmd",
     "millctl.cli.bench_cmd",
     "millctl.cli.completion_cmd",
 )

@@ -25,4 +25,15 @@ def nonnegative_float(text: str) -> float:
     return value
 
 
-__all__ = ["finite_float", "nonnegative_float"]
+def positive_int(text: str) -> int:
+    """A whole number ≥ 1 (argparse type), e.g. a count of workers."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text} must be ≥ 1")
+    return value
+
+
+__all__ = ["finite_float", "nonnegative_float", "positive_int"]

@@ -7,7 +7,7 @@ import argparse
 from rich.console import Console
 
 from millctl.cli.output import print_json, stdout_console
-from millctl.config import load_config
+from millctl.config import MillConfig, load_config
 from millctl.errors import ExitCode
 
 
@@ -46,5 +46,27 @@ def _print_tree(console: Console, data: dict[str, object], prefix: str) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     loaded = load_config(args.file)
-    stdout_console().print(f"{loaded.source}: ok ({loaded.config.name})", markup=False)
+    console = stdout_console()
+    console.print(f"{loaded.source}: ok ({loaded.config.name})", markup=False)
+    for warning in config_warnings(loaded.config):
+        console.print(f"[yellow]warning:[/] {warning}")
     return int(ExitCode.OK)
+
+
+def config_warnings(config: MillConfig) -> list[str]:
+    """Valid but suspicious settings, each with its number: k that makes printed eq. 9 vacuous."""
+    from millctl.physics.limits import LimitParams, eq9_vacuous_below_rad_s
+    from millctl.units import rad_s_to_rpm
+
+    params = LimitParams.from_config(config)
+    vacuous_rpm = rad_s_to_rpm(eq9_vacuous_below_rad_s(params))
+    if vacuous_rpm <= 0.0:
+        return []
+    drive_max = config.drives.vibration.max_speed_rpm
+    reach = "the whole vibration drive range" if vacuous_rpm >= drive_max else "part of the drive range"
+    return [
+        f"k = {params.spring_n_per_m:g} N/m makes printed eq. 9 vacuous: its numerator m g − (k − m ω_v²) r_d "
+        f"is ≤ 0 for ω_v ≤ {vacuous_rpm:.1f} rpm ({reach}, max {drive_max:g} rpm), where the paper's laws "
+        "admit no rotation; k is a per-rod effective stiffness (Set A 92 N/m), not the platform springs' rate "
+        "(docs/model.md, errata k)"
+    ]

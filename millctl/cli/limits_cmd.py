@@ -10,7 +10,7 @@ import numpy as np
 
 from millctl.cli.args import nonnegative_float
 from millctl.cli.output import print_json, stderr_console, stdout_console, write_atomically
-from millctl.config import LimitLaw, load_config
+from millctl.config import CamShape, LimitLaw, load_config
 from millctl.errors import ExitCode, InvalidInputError
 from millctl.physics.limits import (
     LAWS,
@@ -44,6 +44,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         choices=[law.value for law in LimitLaw],
         help="law for the envelope column (default: the configured interlock law)",
     )
+    parser.add_argument(
+        "--cam",
+        choices=[c.value for c in CamShape],
+        help="cam shape (default: the configured one); with it, the two cams compared at the same speeds",
+    )
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument(
         "--plot",
@@ -58,6 +63,10 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
     """Compute the limits table as plain data."""
     loaded = load_config(args.config)
     config = loaded.config
+    if getattr(args, "cam", None):
+        from millctl.studies.cams import with_cam
+
+        config = with_cam(config, CamShape(args.cam))
     envelope = Envelope.from_config(config, law=LimitLaw(args.law) if args.law else None)
     vib_max = config.drives.vibration.max_speed_rpm
     omega_v_rpm = np.array(args.vib_rpm) if args.vib_rpm else np.arange(0.0, vib_max + 1e-9, 100.0)
@@ -89,18 +98,27 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
         "margin": envelope.margin,
         "rod_mass_kg": p.rod_mass_kg,
         "switch_vibration_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
+        "cam": config.mill.cam.shape.value,
         "rows": rows,
     }
 
 
 def _run(args: argparse.Namespace) -> int:
     table = limits_table(args)
+    if args.cam:
+        from millctl.studies.cams import compare_cams
+
+        config = load_config(args.config).config
+        speeds = [row["vibration_rpm"] for row in table["rows"]]
+        table["cams"] = compare_cams(config, LimitLaw(table["law"]), speeds)
     if args.plot:
         plot_limits(args.plot, table, args)
     if args.json:
         print_json(args, table)
     else:
         _print_table(table)
+        if "cams" in table:
+            _print_cams(table)
     not_every = [r["vibration_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
     if not_every:
         stderr_console().print(
@@ -150,6 +168,31 @@ def _print_table(table: dict[str, Any]) -> None:
     stdout_console().print(out)
 
 
+def _print_cams(table: dict[str, Any]) -> None:
+    from rich.table import Table
+
+    out = Table(title=f"single- against double-acting cam under {table['law']}: impacts per rod and revolution p")
+    for name in ("ω_v rpm", "envelope\nsingle", "envelope\ndouble", "at ω_r"):
+        out.add_column(name, justify="right")
+    for variant in ("paper", "corrected"):
+        for shape in ("single", "double"):
+            out.add_column(f"p {variant}\n{shape}", justify="right")
+        out.add_column(f"{variant}\ndouble/single", justify="right")
+    for row in table["cams"]:
+        cells = [f"{row['vibration_rpm']:.0f}", f"{row['limit_rotary_single_rpm']:.1f}"]
+        cells += [f"{row['limit_rotary_double_rpm']:.1f}", f"{row['rotary_rpm']:.1f}"]
+        for variant in ("paper", "corrected"):
+            single, double = row[f"p_{variant}_single"], row[f"p_{variant}_double"]
+            cells += [_num(single), _num(double), _num(double / single if single > 0 else float("nan"))]
+        out.add_row(*cells)
+    out.caption = "p at the highest ω_r both envelopes allow (level-(b) summaries, 16 cam phases); — none"
+    stdout_console().print(out)
+
+
+def _num(value: float) -> str:
+    return "—" if not np.isfinite(value) else f"{value:.3f}"
+
+
 def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> None:
     """Write the Fig. 5 and Fig. 6 counterparts into one PNG (atomically)."""
     try:
@@ -162,6 +205,10 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
     if not path.parent.exists():
         raise InvalidInputError(f"--plot {path}: directory {path.parent} does not exist")
     config = load_config(args.config).config
+    if args.cam:
+        from millctl.studies.cams import with_cam
+
+        config = with_cam(config, CamShape(args.cam))
     p = Envelope.from_config(config).params
     w_v_rpm = np.linspace(0.0, config.drives.vibration.max_speed_rpm, 400)
     w_v = rpm_to_rad_s(w_v_rpm)

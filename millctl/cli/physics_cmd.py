@@ -39,6 +39,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--dt", type=nonnegative_float, default=1e-4, metavar="S", help="legacy time step (default 1e-4 s)"
     )
     parser.add_argument("--q", type=int, default=360, help="legacy-arcs: number of wall arcs (default 360)")
+    parser.add_argument(
+        "--slip",
+        choices=["locked", "free"],
+        help="also ride rod 0 with Coulomb slip on the wall (spin locked: the paper's premise; free: it may roll)",
+    )
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(handler=_run)
 
@@ -103,6 +108,7 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
         "detached": check.detached,
     }
     return {
+        "slip_ride": _slip_ride(scene, args.slip) if args.slip else None,
         "config": loaded.source,
         "variant": model.variant.value,
         "method": args.method,
@@ -117,6 +123,27 @@ def physics_report(args: argparse.Namespace) -> dict[str, Any]:
         "summary": {
             k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in dataclasses.asdict(summary).items()
         },
+    }
+
+
+def _slip_ride(scene: Any, spin: str) -> dict[str, Any]:
+    """Rod 0's ride with Coulomb slip (millctl.physics.slip_ride) and its flight to the wall, as plain data."""
+    from millctl.physics.slip_ride import fly_to_wall, ride
+
+    r = ride(scene, "locked" if spin == "locked" else "free")
+    landing = fly_to_wall(scene, r.time_s, r.theta_rad, r.theta_rate_rad_s) if r.detached else None
+    return {
+        "spin": spin,
+        "friction": scene.model.powder_friction,
+        "detached": r.detached,
+        "time_s": r.time_s if r.detached else None,
+        "theta_d_deg": math.degrees(r.theta_rad) if r.detached else None,
+        "theta_rate_rad_s": r.theta_rate_rad_s if r.detached else None,
+        "spin_rad_s": r.spin_rad_s if r.detached else None,
+        "sliding_s": r.slip_time_s,
+        "mode_changes": len(r.phases),
+        "flight_time_s": landing.flight_time_s if landing else None,
+        "energy_j": landing.energy_j if landing else None,
     }
 
 
@@ -159,6 +186,21 @@ def _run(args: argparse.Namespace) -> int:
         )
     else:
         out.print(f"no-slip holds: |F_t|/N ≤ μ = {ns['friction']:g} on rod 0's carried arc")
+    sr = report["slip_ride"]
+    if sr is not None:
+        head = f"slip ride (spin {sr['spin']}, μ = {sr['friction']:g}, rod 0 alone): "
+        if not sr["detached"]:
+            out.print(head + f"stays on the wall for a revolution, sliding {sr['sliding_s'] * 1e3:.1f} ms of it")
+        else:
+            landing = (
+                "no landing within 2 s"
+                if sr["flight_time_s"] is None
+                else f"flight {sr['flight_time_s'] * 1e3:.4f} ms, wall impact {sr['energy_j'] * 1e3:.4f} mJ"
+            )
+            out.print(
+                head + f"detaches at t = {sr['time_s']:.6f} s, θ_d = {sr['theta_d_deg']:.3f}° after sliding "
+                f"{sr['sliding_s'] * 1e3:.1f} ms; {landing}"
+            )
     s = report["summary"]
     theta = "—" if s["theta_d_rad"] is None else f"{math.degrees(s['theta_d_rad']):.2f}°"
     out.print(

@@ -74,6 +74,8 @@ def plan_as_data(loaded: Any, plan: RecipePlan) -> dict[str, Any]:
         "margin": plan.margin,
         "total_s": plan.total_s,
         "stop_s": plan.stop.duration_s,
+        "powder_charge_g": plan.powder_charge_g,
+        "total_dose_kj_g": plan.total_dose_kj_g,
         "steps": [
             {
                 "index": s.index,
@@ -89,6 +91,8 @@ def plan_as_data(loaded: Any, plan: RecipePlan) -> dict[str, Any]:
                 "detached": s.physics.detached if s.physics else None,
                 "impact_rate_hz": s.physics.impact_rate_hz if s.physics else None,
                 "impact_energy_mj": s.physics.mean_impact_energy_j * 1e3 if s.physics else None,
+                "dose_kj_g": s.dose_kj_g,
+                "dose_target_kj_g": s.dose_target_kj_g,
             }
             for s in plan.steps
         ],
@@ -115,6 +119,7 @@ def _plan(args: argparse.Namespace) -> int:
         "min margin rpm",
         "impacts/s",
         "energy mJ",
+        "dose kJ/g",
         "note",
     )
     for name in columns:
@@ -131,14 +136,21 @@ def _plan(args: argparse.Namespace) -> int:
             "standstill" if s["min_margin_rpm"] is None else f"{s['min_margin_rpm']:.1f}",
             _physics_cell(s["detached"], s["impact_rate_hz"], "{:.1f}"),
             _physics_cell(s["detached"], s["impact_energy_mj"], "{:.2f}"),
+            _dose_cell(s["dose_kj_g"], s["dose_target_kj_g"]),
             s["note"],
         )
     table.caption = (
-        f"final stop {hms(plan.stop.duration_s)}; total {hms(plan.total_s)} (open-ended steps not counted)"
+        f"final stop {hms(plan.stop.duration_s)}; total {hms(plan.total_s)} (open-ended steps not counted); "
+        f"expected dose {plan.total_dose_kj_g:.3g} kJ/g of {plan.powder_charge_g:g} g powder"
     )
     stdout_console().print(table)
     stderr_console().print(f"{loaded.source}: sha256 {loaded.sha256[:16]}")
     return int(ExitCode.OK)
+
+
+def _dose_cell(dose_kj_g: float, target_kj_g: float | None) -> str:
+    """Expected dose of a step; a dose-targeted hold shows its target."""
+    return f"{dose_kj_g:.3g}" if target_kj_g is None else f"{dose_kj_g:.3g} (until {target_kj_g:g})"
 
 
 def _physics_cell(detached: bool | None, value: float | None, fmt: str) -> str:

@@ -14,6 +14,7 @@ from millctl.config.loader import (
 from millctl.config.models import (
     G_M_S2,
     Bus,
+    CamShape,
     Drive,
     Furnace,
     Interlock,
@@ -28,6 +29,7 @@ __all__ = [
     "ENV_VAR",
     "G_M_S2",
     "Bus",
+    "CamShape",
     "Drive",
     "Furnace",
     "Interlock",

@@ -44,6 +44,15 @@ class ModelVariant(enum.StrEnum):
     CORRECTED = "corrected"
 
 
+class CamShape(enum.StrEnum):
+    """The vibration cam's shape (docs/model.md#cam-shapes, :mod:`millctl.physics.cam`)."""
+
+    SINGLE = "single"
+    """The paper's circular eccentric: one lift stroke per cam revolution, r_d sin α."""
+    DOUBLE = "double"
+    """The paper's proposed elliptical double-acting cam: two strokes per revolution, r_d sin 2α."""
+
+
 class Material(_Strict):
     """Elastic and mass properties of a rod or vial material."""
 
@@ -96,6 +105,8 @@ class Cam(_Strict):
     """Cam eccentricity r_d, the vibration amplitude (mm)."""
     cam_to_vial_m: Annotated[float, Field(gt=0.0, le=5.0)]
     """Distance l from the cam centre to the vial centre at its highest point (m)."""
+    shape: CamShape = CamShape.SINGLE
+    """Circular single-acting (the paper's mill) or elliptical double-acting (its proposal)."""
 
     @property
     def eccentricity_m(self) -> float:
@@ -103,10 +114,30 @@ class Cam(_Strict):
         return self.eccentricity_mm * 1e-3
 
 
-class Spring(_Strict):
-    """The four springs between the platforms, as one equivalent stiffness."""
+class Powder(_Strict):
+    """The powder charge in the vial (for the specific energy dose, J per g)."""
 
-    stiffness_n_per_m: Annotated[float, Field(ge=0.0, le=1e7)]
+    charge_g: Annotated[float, Field(gt=0.0, le=10_000.0)] = 20.0
+
+
+class Spring(_Strict):
+    """The spring term k of the paper's eqs 4–9: a per-rod effective stiffness, not the platform springs' rate.
+
+    The paper puts a spring force k z on one rod (eq. 4), so k is the share of the four platform
+    springs that acts on one rod. Only values of the order of m ω_v² (tens to hundreds of N/m; Set A's
+    92 N/m gives eq. 9's 200 rpm at ω_v = 800 rpm) make eq. 9 meaningful; a real platform spring rate
+    (10⁴–10⁵ N/m) makes eq. 9's numerator m g − (k − m ω_v²) r_d ≤ 0 up to ω_v = √(k/m − g/r_d),
+    where the law admits no rotation (``millctl config check`` warns; docs/model.md, errata k).
+    """
+
+    stiffness_n_per_m: Annotated[
+        float,
+        Field(
+            ge=0.0,
+            le=1e7,
+            description="k, per-rod effective stiffness of eqs 4–9 (N/m); not the platform springs' rate",
+        ),
+    ]
 
 
 class Model(_Strict):
@@ -126,6 +157,7 @@ class Mill(_Strict):
     vial: Vial
     cam: Cam
     spring: Spring
+    powder: Powder = Powder()
 
     @model_validator(mode="after")
     def _rods_fit(self) -> Mill:
@@ -209,6 +241,22 @@ class Interlock(_Strict):
     """Fresh frames per point taken off the E2E sequence score (repeated/out-of-sequence counters)."""
     startup_grace_s: Annotated[float, Field(gt=0.0, le=60.0)] = 2.0
     """After the node is first seen, a stream not yet received is judged stale only after this long (s)."""
+    command_confirm_s: Annotated[float, Field(gt=0.0, le=10.0)] = 1.0
+    """A command the node has not confirmed by its reported state within this time escalates (s):
+    STOP → E-stop, any other → trip naming the lost command. Also the lag allowed before measured
+    speeds must follow what was commanded (plus the drives' settle time)."""
+    command_repeat_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.2
+    """An unconfirmed command is sent again, with a fresh alive counter, this often (s); an E-stop
+    is repeated at this period until the node reports it."""
+
+    @model_validator(mode="after")
+    def _repeat_within_confirm(self) -> Interlock:
+        if not self.command_repeat_s < self.command_confirm_s:
+            raise ValueError(
+                f"command_repeat_s = {self.command_repeat_s} must be < command_confirm_s = {self.command_confirm_s}: "
+                "an unconfirmed command must be repeated before it escalates"
+            )
+        return self
 
 
 class Timing(_Strict):
@@ -272,6 +320,8 @@ class Service(_Strict):
     records_dir: str = ""
     rotate_bytes: Annotated[int, Field(ge=4_096, le=1 << 32)] = 16 << 20
     keep_files: Annotated[int, Field(ge=1, le=1_000)] = 10
+    run_sample_s: Annotated[float, Field(ge=0.05, le=3_600.0)] = 1.0
+    """How often a recipe run records a sample of the mill (s; ``millctl report`` draws them)."""
     max_request_bytes: Annotated[int, Field(ge=4_096, le=64 << 20)] = 1 << 20
     """Largest request body the API reads (bytes); a larger one is refused with 413 unread."""
 
@@ -336,6 +386,7 @@ __all__ = [
     "G_M_S2",
     "Bus",
     "Cam",
+    "CamShape",
     "Drive",
     "Drives",
     "Furnace",
@@ -346,6 +397,7 @@ __all__ = [
     "MillConfig",
     "Model",
     "ModelVariant",
+    "Powder",
     "Rods",
     "Service",
     "Spring",

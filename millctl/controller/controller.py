@@ -18,7 +18,9 @@ import can
 
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
+from millctl.controller.confirm import Confirmations, Pending
 from millctl.controller.events import Event, EventKind, EventListener
+from millctl.controller.expect import SpeedExpectation
 from millctl.controller.monitor import MeasuredSpeedMonitor
 from millctl.controller.states import ControllerState, StateMachine, Transition
 from millctl.controller.status import Status, build_status
@@ -34,6 +36,7 @@ from millctl.protocol import (
     EStop,
     EStopSource,
     FaultCode,
+    FaultFlag,
     FurnaceTelemetry,
     Heartbeat,
     MillMessage,
@@ -45,6 +48,7 @@ from millctl.protocol import (
 )
 from millctl.protocol import ControllerState as WireState
 from millctl.safety import STANDSTILL, Envelope, InterlockRefused, RampPlanner, SpeedPoint, Trajectory
+from millctl.safety.commands import CONTROLLER_ALLOWS, Operation, node_change_commanded
 
 log = logging.getLogger(__name__)
 
@@ -93,6 +97,19 @@ class Controller:
         self.tracker = TelemetryTracker(self.codec, config.interlock)
         self.reader = BusReader(bus, "controller")
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
+        interlock = config.interlock
+        self.confirmations = Confirmations(interlock)
+        self.expectation = SpeedExpectation(
+            self.planner,
+            interlock.measurement_tolerance_rpm,
+            interlock.command_confirm_s + self.planner.settle_s,
+            interlock.debounce_samples,
+        )
+        self._node_state: NodeState | None = None
+        """The node's state in the last NodeStatus (None before the first, or after losing the node)."""
+        self._estop_pending = False
+        self._estop_sent_s = 0.0
+        self.estops_sent = 0
         self._counters: dict[type[MillMessage], AliveCounter] = {
             kind: AliveCounter() for kind in (Heartbeat, Setpoints, Command)
         }
@@ -166,11 +183,20 @@ class Controller:
             log.warning("bus send failed for %s: %s", type(message).__name__, exc)
 
     def _command(self, code: CommandCode, source: str, reason: str) -> None:
+        """Send a command and await the node's confirmation of it (docs/safety.md#every-command-confirmed)."""
         self._send(Command(code))
+        self.confirmations.sent(code, source, reason, self.clock.now())
         self._emit(EventKind.COMMAND, source, f"{code.name}: {reason}", command=code.name)
 
+    def _send_estop(self) -> None:
+        self._send(EStop(EStopSource.CONTROLLER))
+        self._estop_pending = True
+        self._estop_sent_s = self.clock.now()
+        self.estops_sent += 1
+
     # ------------------------------------------------------------------ operator commands
-    def _require(self, allowed: set[ControllerState], what: str, source: str) -> None:
+    def _require(self, operation: Operation, what: str, source: str) -> None:
+        allowed = CONTROLLER_ALLOWS[operation]
         if self.state not in allowed:
             reason = f"{what} is not possible in state {self.state} (possible in {', '.join(sorted(allowed))})"
             if self.state is S.TRIPPED:
@@ -180,12 +206,12 @@ class Controller:
 
     def arm(self, source: str = "operator") -> None:
         """Ask the node to arm (from DISABLED, with a live heartbeat)."""
-        self._require({S.DISABLED}, "arm", source)
+        self._require(Operation.ARM, "arm", source)
         self._command(CommandCode.ARM, source, "operator request")
 
     def disarm(self, source: str = "operator") -> None:
         """Ask the node to disarm (from ARMED at standstill)."""
-        self._require({S.ARMED}, "disarm", source)
+        self._require(Operation.DISARM, "disarm", source)
         if self.commanded != STANDSTILL or self.trajectory is not None:
             self._refuse(source, "disarm needs both setpoints at 0: stop first")
         self._disarm_pending = True
@@ -213,7 +239,7 @@ class Controller:
         refused furnace target leaves the speeds untouched and the other way
         round (InterlockRefused, nothing sent).
         """
-        self._require({S.ARMED, S.RUNNING}, "set speeds", source)
+        self._require(Operation.SET, "set speeds", source)
         rate_c_per_min = None if furnace_c is None else self._check_furnace(furnace_c, heating_rate_c_per_min, source)
         target = SpeedPoint(rotary_rpm, vibration_rpm)
         try:
@@ -247,7 +273,7 @@ class Controller:
             self.furnace_target_c = None
             self._emit(EventKind.COMMAND, source, "heater off")
             return
-        self._require({S.ARMED, S.RUNNING}, "set the furnace", source)
+        self._require(Operation.FURNACE, "set the furnace", source)
         self._apply_furnace(temp_c, self._check_furnace(temp_c, rate_c_per_min, source), source)
 
     def _check_furnace(self, temp_c: float, rate_c_per_min: float | None, source: str) -> float:
@@ -271,26 +297,49 @@ class Controller:
 
     def stop(self, source: str = "operator", reason: str = "operator request") -> None:
         """Controlled stop (category 1): the node ramps both drives down inside the envelope, heater off."""
-        self._require({S.ARMED, S.RUNNING, S.STOPPING}, "stop", source)
+        self._require(Operation.STOP, "stop", source)
         self._begin_stop(source, reason)
 
     def _begin_stop(self, source: str, reason: str) -> None:
         self.trajectory = None
         self.furnace_target_c = None
         self._command(CommandCode.STOP, source, reason)
+        self._expect_stop()
         if self.machine.can_go(S.STOPPING):
             self.machine.go(S.STOPPING, f"{source}: {reason}")
         self.commanded = STANDSTILL
 
+    def _expect_stop(self) -> None:
+        """From now on the drives must stay under the stop's ceiling and reach standstill by its end."""
+        measured = self.measured
+        self.expectation.begin_stop(
+            self.clock.now(), None if measured is None else (measured.rotary_rpm, measured.vibration_rpm)
+        )
+
     def estop(self, source: str = "operator") -> None:
-        """Emergency stop: the E-stop frame at the highest priority, then a latched trip."""
+        """Emergency stop: the E-stop frame at the highest priority, repeated until the node reports it; a trip."""
         self._send(EStop(EStopSource.OPERATOR if source != "controller" else EStopSource.CONTROLLER))
+        self._estop_pending = True
+        self._estop_sent_s = self.clock.now()
         self._emit(EventKind.COMMAND, source, "E-STOP")
         self._trip(f"E-stop by {source}", source)
 
+    def _escalate(self, cause: str) -> None:
+        """A stop that does not happen: E-stop (repeated until the node reports it), and a trip naming why."""
+        self._send_estop()
+        self._emit(EventKind.TRIP, "controller", f"E-stop: {cause}")
+        self._trip(f"{cause}: E-stop sent", "controller")
+
+    def _uncommanded(self, cause: str) -> None:
+        """The node does what nobody commanded: a trip, or an E-stop where a stop was already commanded."""
+        if self.state in (S.STOPPING, S.TRIPPED):
+            self._escalate(cause)
+        else:
+            self._trip(cause, "controller")
+
     def reset(self, source: str = "operator") -> None:
         """Clear a latched trip: only with fresh telemetry and both drives at standstill."""
-        self._require({S.TRIPPED}, "reset", source)
+        self._require(Operation.RESET, "reset", source)
         now = self.clock.now()
         stale = self.tracker.stale(now)
         if stale:
@@ -328,6 +377,7 @@ class Controller:
         self.trajectory = None
         self.furnace_target_c = None
         self._command(CommandCode.STOP, "interlock", f"trip: {cause}")
+        self._expect_stop()
         self.commanded = STANDSTILL
         self.machine.go(S.TRIPPED, cause)
 
@@ -370,12 +420,43 @@ class Controller:
         """E-stop frames read from other senders (the node acts on them)."""
         return self.reader.counts.estops
 
+    @property
+    def moving_commanded(self) -> bool:
+        """True while the controller commands a speed other than standstill (or a ramp is under way)."""
+        return self.state in (S.ARMED, S.RUNNING) and (self.commanded != STANDSTILL or self.trajectory is not None)
+
+    def _judge_node_change(self, node: NodeState) -> None:
+        """Any node state change the controller did not command trips (E-stop where a stop was commanded)."""
+        before, self._node_state = self._node_state, node
+        now = self.clock.now()
+        if before is None:  # first status (or first after losing the node): only a running node is suspect
+            if node is NodeState.RUNNING and not self.moving_commanded and self.state is not S.DISCONNECTED:
+                self._uncommanded(f"node reports RUNNING, which the controller (state {self.state}) did not command")
+            return
+        if node_change_commanded(before, node, self.confirmations.in_flight(now), self.moving_commanded):
+            return
+        restarted = ": the node restarted, or another sender commands it" if node is NodeState.DISABLED else (
+            ": another sender commands the node"
+        )
+        self._uncommanded(
+            f"node went {before.name} → {node.name}, which the controller (state {self.state}) did not command"
+            + restarted
+        )
+
     def _on_node_status(self, status: NodeStatus) -> None:
+        now = self.clock.now()
+        self._judge_node_change(status.state)
+        for confirmed in self.confirmations.confirm(status, now):
+            log.debug("%s confirmed by node %s after %d send(s)", confirmed.code.name, status.state.name,
+                      confirmed.sends)
+        if self._estop_pending and FaultFlag.ESTOP in status.fault_bits:
+            self._estop_pending = False
         state, node = self.state, status.state
         if state is S.TRIPPED and self._reset_pending:
             if node is NodeState.DISABLED and not status.fault_bits:
                 self._reset_pending = False
                 self.trip_cause = ""
+                self.expectation.end_stop()
                 self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
             else:
                 self._advance_reset(status)
@@ -396,6 +477,7 @@ class Controller:
         elif state is S.ARMED and node is NodeState.RUNNING:
             self.machine.go(S.RUNNING, "node RUNNING")
         elif state is S.STOPPING and node is NodeState.ARMED:
+            self.expectation.end_stop()
             self.machine.go(S.ARMED, "controlled stop complete")
         elif state is S.ARMED and node is NodeState.DISABLED and self._disarm_pending:
             self._disarm_pending = False
@@ -404,11 +486,17 @@ class Controller:
             self._trip(f"node reports DISABLED while the controller is {state}: the node restarted", "node")
 
     def _on_measured(self, measured: DriveTelemetry) -> None:
-        if self.state in (S.DISCONNECTED, S.TRIPPED):
+        """Check a measured pair: the envelope (until tripped), and what was commanded (in every state)."""
+        if self.state is S.DISCONNECTED:
             return
-        reason = self.monitor.update(measured.rotary_rpm, measured.vibration_rpm)
+        if self.state is not S.TRIPPED:
+            reason = self.monitor.update(measured.rotary_rpm, measured.vibration_rpm)
+            if reason is not None:
+                self._trip(reason)
+        reason = self.expectation.check(self.clock.now(), measured.rotary_rpm, measured.vibration_rpm)
         if reason is not None:
-            self._trip(reason)
+            self.expectation.reset()
+            self._uncommanded(reason)
 
     def _check(self, now: float) -> None:
         if self.state is S.DISCONNECTED:
@@ -422,9 +510,51 @@ class Controller:
                 self._reset_source,
                 f"reset did not complete within {RESET_TIMEOUT_S:.0f} s: node {shown}; clear the cause and retry",
             )
-        problems = self.tracker.stale(now) + self.tracker.link_faults()
+        stale = self.tracker.stale(now)
+        if stale:
+            self._node_state = None  # the node's history is lost: judge it afresh when it speaks again
+        problems = stale + self.tracker.link_faults()
         if problems and self.state is not S.TRIPPED:
             self._trip("; ".join(problems))
+        self._confirm_or_escalate(now)
+
+    def _confirm_or_escalate(self, now: float) -> None:
+        """Repeat what the node has not confirmed; escalate what it did not confirm in time; STOPPING's deadline."""
+        for pending in self.confirmations.due(now):
+            self._send(Command(pending.code))
+            self.confirmations.sent(pending.code, pending.source, pending.reason, now)
+            log.info("%s not yet confirmed by the node: sent again (%d)", pending.code.name, pending.sends)
+        for pending in self.confirmations.expired(now):
+            self._lost(pending)
+        if self._estop_pending and now - self._estop_sent_s >= self.confirmations.repeat_s:
+            self._send_estop()  # until the node reports it
+        if self.state is S.STOPPING and now > self.expectation.stop_end_s:
+            measured = self.measured
+            shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
+            node = self._node_state.name if self._node_state else "unknown"
+            self._escalate(
+                f"controlled stop not complete by its deadline ({self.expectation.stop_bound_s:.1f} s: the planned "
+                f"stop plus {self.expectation.window_s:.1f} s; node {node}, measured {shown})"
+            )
+
+    def _lost(self, pending: Pending) -> None:
+        """A command the node did not confirm within the bound: STOP → E-stop; any other → a trip naming it."""
+        node = self.node_status
+        shown = f"{node.state.name}, last refusal {node.last_refusal.name}" if node else "silent"
+        what = (
+            f"{pending.code.name} ({pending.reason}) not confirmed by the node within "
+            f"{self.config.interlock.command_confirm_s:.1f} s after {pending.sends} send(s) "
+            f"(node {shown}; interlock.command_confirm_s)"
+        )
+        if pending.code is CommandCode.STOP:
+            self._escalate(what)
+        elif self.state is S.TRIPPED:
+            if self._reset_pending:
+                self._reset_pending = False
+                self._emit(EventKind.REFUSAL, self._reset_source, f"reset did not complete: {what}; clear the cause "
+                           "and retry")
+        else:
+            self._trip(what, "controller")
 
     def _advance(self, now: float, dt: float) -> None:
         if self.trajectory is not None:
@@ -433,6 +563,7 @@ class Controller:
             if elapsed >= self.trajectory.duration_s:
                 self.commanded = self.trajectory.end
                 self.trajectory = None
+        self.expectation.commanded(now, self.commanded)
         if self.furnace_target_c is not None:
             step = self.heating_rate_c_per_min / 60.0 * dt
             delta = self.furnace_target_c - self.furnace_setpoint_c

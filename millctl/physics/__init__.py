@@ -8,7 +8,9 @@ Levels of detail (docs/model.md):
 
 Building blocks: :mod:`.model` (parameters, scene), :mod:`.kinematics` (eqs 1–7),
 :mod:`.detachment`, :mod:`.flight` (eq. 10), :mod:`.events` (eqs 11–14, exact),
-:mod:`.impact` (eqs 18–27).
+:mod:`.impact` (eqs 18–27); :mod:`.slip` (where the no-slip carriage fails, pure) and
+:mod:`.slip_ride` (stick → slip → detach with the rod's spin); :mod:`.errata` prints the
+errata table's figures.
 """
 
 from millctl.physics.model import MillModel, Scene

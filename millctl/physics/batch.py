@@ -11,8 +11,9 @@
 Every argument of :meth:`SceneBatch.broadcast` is a scalar or an array; they are
 broadcast against each other (numpy rules), so a grid is ``w_r[:, None]`` and
 ``w_v[None, :]``. ``eccentricity_m`` and ``spring_n_per_m`` may vary per scene too;
-everything else comes from ``model``. The kernels take the single-acting circular
-cam of eqs 1–3 (lift r_d sin α).
+everything else comes from ``model``, its cam shape included: ω_v and α0 are the cam
+motor's, and the kernels run on the cam's lift (h·ω_v, h·α0, :mod:`.cam`); a result's
+``alpha_d_rad`` is the lift's phase.
 
 ``rods="one"``: rod 0 starts pinned at θ0 with cam phase α0, detaches within one
 revolution, flies, and its first contact with the wall or one of the n − 1 rods
@@ -32,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from millctl.errors import PhysicsInputError
 from millctl.physics import kernels
+from millctl.physics.cam import strokes
 from millctl.physics.model import MillModel, Scene
 
 FloatArray = NDArray[np.float64]
@@ -104,11 +106,12 @@ class SceneBatch:
                 first = int(np.flatnonzero(bad)[0])
                 raise PhysicsInputError(f"{name}[{first}] = {float(values[first])} must be finite")
         rows = np.tile(kernels.scene_row(Scene(model, 0.0, 0.0)), (w_r.size, 1))
+        lift = strokes(model.cam)  # the kernels run on the cam's lift: h·ω_v, h·α0 (millctl.physics.cam)
         columns = {
             "omega_r_rad_s": w_r,
-            "omega_v_rad_s": w_v,
+            "omega_v_rad_s": lift * w_v,
             "theta0_rad": th,
-            "alpha0_rad": al,
+            "alpha0_rad": lift * al,
             "eccentricity_m": rd,
             "spring_per_mass_s2": kk / model.rod_mass_kg,
         }

@@ -71,7 +71,7 @@ def scan_step_s(scene: Scene) -> float:
     """Bracketing step (s): 1/16 of the shortest of the cam period, the revolution and the fall time √(2 r_r/g)."""
     m = scene.model
     scales = [math.sqrt(2.0 * m.rod_radius_m / m.g_m_s2)]
-    for w in (scene.omega_v_rad_s, scene.omega_r_rad_s):
+    for w in (scene.lift_omega_rad_s, scene.omega_r_rad_s):
         if w > 0.0:
             scales.append(2.0 * math.pi / w)
     return min(scales) / 16.0
@@ -110,7 +110,7 @@ def _rod_sep(scene: Scene, a: RodState, b: RodState) -> tuple[Callable[[float], 
 def _accel_bound(scene: Scene) -> float:
     """Bound on any rod's acceleration in the vial frame (m/s²): g + r_d ω_v² in flight, r0 ω_r² pinned."""
     m = scene.model
-    return max(m.g_m_s2 + m.eccentricity_m * scene.omega_v_rad_s**2, m.r0_m * scene.omega_r_rad_s**2)
+    return max(m.g_m_s2 + m.eccentricity_m * scene.lift_omega_rad_s**2, m.r0_m * scene.omega_r_rad_s**2)
 
 
 def _scan_arrays(scene: Scene, a: RodState, b: RodState | None, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

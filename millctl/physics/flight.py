@@ -75,7 +75,7 @@ class FlightState:
     """True when the flight starts with the rod on the wall (departure: the wall gap has a triple root)."""
 
     def _alpha0(self, scene: Scene) -> float:
-        return scene.alpha0_rad + scene.omega_v_rad_s * self.t0_s
+        return scene.lift_alpha0_rad + scene.lift_omega_rad_s * self.t0_s
 
     def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
         """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
@@ -88,7 +88,7 @@ class FlightState:
         and never formed as the difference of two absolute times (docs/model.md, eq. 10).
         """
         tau = tau_s  # the flight's own clock
-        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        r_d, w, g = scene.model.eccentricity_m, scene.lift_omega_rad_s, scene.model.g_m_s2
         a0 = self._alpha0(scene)
         h = -0.5 * g * tau * tau - r_d * (math.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
         dh = -g * tau - r_d * w * (math.cos(a0 + w * tau) - math.cos(a0))
@@ -97,7 +97,7 @@ class FlightState:
     def rel_array(self, scene: Scene, t_s: FloatArray) -> tuple[FloatArray, ...]:
         """Vectorised :meth:`rel`."""
         tau = t_s - self.t0_s
-        r_d, w, g = scene.model.eccentricity_m, scene.omega_v_rad_s, scene.model.g_m_s2
+        r_d, w, g = scene.model.eccentricity_m, scene.lift_omega_rad_s, scene.model.g_m_s2
         a0 = self._alpha0(scene)
         h = -0.5 * g * tau * tau - r_d * (np.sin(a0 + w * tau) - math.sin(a0) - w * tau * math.cos(a0))
         dh = -g * tau - r_d * w * (np.cos(a0 + w * tau) - math.cos(a0))
@@ -123,7 +123,7 @@ def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, tau_
     inside the wall circle. ``tau_s`` is the time since departure, τ = t − t_d (s).
     """
     tau = tau_s  # the flight's own clock
-    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.omega_v_rad_s
+    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.lift_omega_rad_s
     r_d, g = scene.model.eccentricity_m, scene.model.g_m_s2
     a0 = flight._alpha0(scene)
     s_d, c_d = flight.y0_m / r0, flight.x0_m / r0
@@ -146,7 +146,7 @@ ZERO_FLIGHT_RTOL = 1e-12
 def departure_gap_scale(scene: Scene, n_d_m2_s2: float) -> float:
     """The size of the terms of :func:`departure_wall_gap` at τ = 0 (its units: m²/s³ when n_d = 0, else m²/s²)."""
     m = scene.model
-    w_r, w_v, r_d, g, r0 = scene.omega_r_rad_s, scene.omega_v_rad_s, m.eccentricity_m, m.g_m_s2, m.r0_m
+    w_r, w_v, r_d, g, r0 = scene.omega_r_rad_s, scene.lift_omega_rad_s, m.eccentricity_m, m.g_m_s2, m.r0_m
     if n_d_m2_s2 == 0.0:
         return 2.0 * r0 * (r_d * w_v**3 + (g + r_d * w_v * w_v) * w_r)
     return r0 * (r0 * w_r * w_r + g + r_d * w_v * w_v)

@@ -8,7 +8,13 @@ Corrected forms (docs/model.md, errata):
   m/2 between two flying rods;
 * eq. 23: Hertz line contact b = √(4 N R' / (π L E*)), 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂
   (printed: E₂ twice and π/4);
-* eq. 24: a rod inside a bore is a concave contact, 1/R' = 1/R_r − 1/R_v (printed: a sum).
+* eq. 24: a rod inside a bore is a concave contact, 1/R' = 1/R_r − 1/R_v (printed: a sum);
+* eq. 20: the area A is the Hertz line contact of the two colliding rods, A = 2 b L with
+  R' = r_r/2 (two equal convex cylinders) and 1/E* = 2(1 − ν²)/E (both rods), so that
+  τ = μ W_r/A = μ p_av of that contact (printed: A undefined);
+* eqs 26–27: the spring acts on the platform, not on the rod. What the wall transmits
+  tangentially to a carried rod is the traction F_t = m g_eff cos θ, and at most μN of it:
+  τ = min(|F_t|, μN)/(2 L b) (printed: k r_d sin α cos θ/(2 L b)).
 """
 
 from __future__ import annotations
@@ -93,7 +99,47 @@ def rod_rod_shear_pa(model: MillModel, weight_component_n: float, contact_area_m
     return model.powder_friction * weight_component_n / contact_area_m2
 
 
+def rod_rod_contact_area_m2(model: MillModel, load_n: float) -> float:
+    """A of eq. 20 (m²): the Hertz strip 2 b L of two equal rods pressed by ``load_n``.
+
+    b = √(4 W R'/(π L E*)), R' = r_r/2 (1/R' = 1/r_r + 1/r_r, both convex),
+    1/E* = 2 (1 − ν²)/E with the rods' own modulus and Poisson ratio.
+    """
+    w = max(load_n, 0.0)
+    e_star = model.rod_youngs_pa / (2.0 * (1.0 - model.rod_poisson**2))
+    r_eff = 0.5 * model.rod_radius_m
+    b = math.sqrt(4.0 * w * r_eff / (math.pi * model.rod_length_m * e_star))
+    return 2.0 * b * model.rod_length_m
+
+
+def rod_rod_weight_shear_pa(model: MillModel, weight_component_n: float) -> float:
+    """Eq. 20 with its area defined: τ = μ W_r / A(W_r), the Hertz strip of the colliding rods (Pa)."""
+    return rod_rod_shear_pa(model, weight_component_n, rod_rod_contact_area_m2(model, weight_component_n))
+
+
+def carriage_shear_pa(
+    model: MillModel, omega_r_rad_s: float, omega_v_rad_s: float, theta_rad: float, alpha_rad: float
+) -> tuple[float, float]:
+    """Eqs 26–27 corrected: shear the wall transmits to a carried rod, (uncapped, capped at μN) in Pa.
+
+    N = m (r0 ω_r² − g_eff sin θ), F_t = m g_eff cos θ, g_eff = g − r_d ω_v² sin α; the strip is 2 b(N) L
+    (eq. 23 corrected). Uncapped |F_t|/(2 L b) is what the no-slip carriage needs; the wall gives at most
+    μN/(2 L b) = μ p_av (eq. 25), and where the first exceeds the second the rod slides (docs/model.md, slip).
+    Both 0 where N ≤ 0 (the rod is off the wall).
+    """
+    m = model.rod_mass_kg
+    g_eff = model.g_m_s2 - model.eccentricity_m * omega_v_rad_s**2 * math.sin(alpha_rad)
+    normal = m * (model.r0_m * omega_r_rad_s**2 - g_eff * math.sin(theta_rad))
+    b = hertz_half_width_m(model, normal)
+    if normal <= 0.0 or b <= 0.0:
+        return 0.0, 0.0
+    traction = abs(m * g_eff * math.cos(theta_rad))
+    strip = 2.0 * model.rod_length_m * b
+    return traction / strip, min(traction, model.powder_friction * normal) / strip
+
+
 __all__ = [
+    "carriage_shear_pa",
     "contact_radius_m",
     "effective_modulus_pa",
     "hertz_half_width_m",
@@ -101,7 +147,9 @@ __all__ = [
     "impact_rate_hz",
     "mean_pressure_pa",
     "peak_pressure_pa",
+    "rod_rod_contact_area_m2",
     "rod_rod_shear_pa",
+    "rod_rod_weight_shear_pa",
     "spin_shear_pa",
     "wall_shear_pa",
 ]

@@ -65,7 +65,7 @@ def ivp_first_contact(scene: Scene, tol: float, t_end_s: float = 5.0, method: st
     departures.sort()
     slots: dict[int, int] = {}
     y0 = np.zeros(0)
-    g, r_d, w_v, a0 = m.g_m_s2, m.eccentricity_m, scene.omega_v_rad_s, scene.alpha0_rad
+    g, r_d, w_v, a0 = m.g_m_s2, m.eccentricity_m, scene.lift_omega_rad_s, scene.lift_alpha0_rad
 
     def rhs(t: float, y: FloatArray) -> FloatArray:
         out = np.empty_like(y)
@@ -99,9 +99,9 @@ def _contact(scene: Scene, slots: dict[int, int], ev: _Event, t: float, y: Float
     m = scene.model
     k = 4 * slots[ev.rod]
     x, yy, vx, vy = (float(v) for v in y[k : k + 4])
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * t
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * t
     yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * math.sin(alpha)
-    vyc = m.eccentricity_m * scene.omega_v_rad_s * math.cos(alpha)
+    vyc = m.eccentricity_m * scene.lift_omega_rad_s * math.cos(alpha)
     if ev.partner < 0:
         dx, dy = x, yy
         rvx, rvy = vx + scene.omega_r_rad_s * yy, vy - scene.omega_r_rad_s * x

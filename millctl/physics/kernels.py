@@ -62,7 +62,11 @@ PARAMS = (
     "restitution",
     "cam_to_vial_m",
 )
-"""Columns of a scene row: SI units; ``paper`` 1.0 for the paper variant, 0.0 corrected; k/m in 1/s²."""
+"""Columns of a scene row: SI units; ``paper`` 1.0 for the paper variant, 0.0 corrected; k/m in 1/s².
+
+``omega_v_rad_s`` and ``alpha0_rad`` are the cam's *lift* speed and phase (h·ω_v, h·α0 for a cam of
+h strokes per revolution, :mod:`millctl.physics.cam`), so ``alpha_d_rad`` in a result is a lift phase.
+"""
 (_R0, _RR, _RD, _G, _WR, _WV, _TH0, _A0, _N, _PAPER, _KM, _M, _E, _L) = range(len(PARAMS))
 
 OUT = (
@@ -82,6 +86,7 @@ OUT = (
     "alpha_d_rad",
     "first_detach_time_s",
     "zero_length_flights",
+    "theta_contact_rad",
 )
 """Columns of a kernel result row (lab frame; ``found`` 0.0 when nothing touches)."""
 (
@@ -101,6 +106,7 @@ OUT = (
     _O_ALD,
     _O_TD0,
     _O_ZERO,
+    _O_THC,
 ) = range(len(OUT))
 
 WALL = -1
@@ -127,9 +133,9 @@ def scene_row(scene: Scene) -> FloatArray:
             m.eccentricity_m,
             m.g_m_s2,
             scene.omega_r_rad_s,
-            scene.omega_v_rad_s,
+            scene.lift_omega_rad_s,  # the cam's lift (millctl.physics.cam): h·ω_v, h·α0
             scene.theta0_rad,
-            scene.alpha0_rad,
+            scene.lift_alpha0_rad,
             float(m.n_rods),
             1.0 if m.variant is ModelVariant.PAPER else 0.0,
             m.spring_n_per_m / m.rod_mass_kg,
@@ -143,9 +149,19 @@ def scene_row(scene: Scene) -> FloatArray:
 # -- N(t)/m, eqs 4–7 --------------------------------------------------------------------------------
 
 
+# a trig sum c + Σ a_k cos(w_k t + φ_k) as a row: [c, number of terms, a_0..a_5, w_0..w_5, φ_0..φ_5]
+_T_COUNT, _TA, _TW, _TP = 1, 2, 8, 14
+_TRIG_COLUMNS = 20
+
+
+@njit(cache=True)
+def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyped-def]
+    rows[i, _TA + k], rows[i, _TW + k], rows[i, _TP + k] = amplitude, frequency, phase
+
+
 @njit(cache=True)
 def _trig_rows(p, n):  # type: ignore[no-untyped-def]
-    """Row i: N/m of rod i as c + Σ a_k cos(w_k t + φ_k): [c, a0, a1, a2, w0, w1, w2, φ0, φ1, φ2]."""
+    """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling."""
     wr, wv, a0 = p[_WR], p[_WV], p[_A0]
     if p[_PAPER] != 0.0:
         constant = 2.0 * p[_R0] * wr * wr
@@ -154,13 +170,13 @@ def _trig_rows(p, n):  # type: ignore[no-untyped-def]
         constant = p[_R0] * wr * wr
         coupling = p[_RD] * wv * wv
     half = 0.5 * coupling
-    rows = np.empty((n, 10))
+    rows = np.zeros((n, _TRIG_COLUMNS))
     for i in range(n):
         th0 = p[_TH0] + i * 2.0 * math.pi / n
-        rows[i, 0] = constant
-        rows[i, 1], rows[i, 2], rows[i, 3] = p[_G], half, -half
-        rows[i, 4], rows[i, 5], rows[i, 6] = wr, wv - wr, wv + wr
-        rows[i, 7], rows[i, 8], rows[i, 9] = th0 + 0.5 * math.pi, a0 - th0, a0 + th0
+        rows[i, 0], rows[i, _T_COUNT] = constant, 3.0
+        _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
+        _set_term(rows, i, 1, half, wv - wr, a0 - th0)
+        _set_term(rows, i, 2, -half, wv + wr, a0 + th0)
     return rows
 
 
@@ -169,17 +185,17 @@ def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
     """Sign × the order-th time derivative of row i at t."""
     total = tr[i, 0] if order == 0 else 0.0
     shift = 0.5 * math.pi * order
-    for k in range(3):
-        w = tr[i, 4 + k]
-        total += tr[i, 1 + k] * w**order * math.cos(w * t + tr[i, 7 + k] + shift)
+    for k in range(int(tr[i, _T_COUNT])):
+        w = tr[i, _TW + k]
+        total += tr[i, _TA + k] * w**order * math.cos(w * t + tr[i, _TP + k] + shift)
     return sign * total
 
 
 @njit(cache=True)
 def _trig_bound(tr, i, order):  # type: ignore[no-untyped-def]
     total = 0.0
-    for k in range(3):
-        total += abs(tr[i, 1 + k]) * abs(tr[i, 4 + k]) ** order
+    for k in range(int(tr[i, _T_COUNT])):
+        total += abs(tr[i, _TA + k]) * abs(tr[i, _TW + k]) ** order
     return total
 
 
@@ -373,7 +389,10 @@ def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-
 def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     """First t in (t0, t1] where sign·N falls through zero, given sign·N(t0) > 0; inf if it stays ≥ 0."""
     m2, m3 = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
-    w_max = max(abs(tr[i, 4]), abs(tr[i, 5]), abs(tr[i, 6]))
+    w_max = 0.0
+    for k in range(int(tr[i, _T_COUNT])):
+        if tr[i, _TA + k] != 0.0:
+            w_max = max(w_max, abs(tr[i, _TW + k]))
     cells = 1 if w_max == 0.0 else int(min(max(math.ceil((t1 - t0) * w_max * 2.0 / math.pi), 1), 4096))
     width = (t1 - t0) / cells
     stack_a = np.empty(2 * _MAX_DEPTH + 4)
@@ -424,21 +443,25 @@ def _window_s(p):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
-    """A time up to which N > 0 is certified from t on by its slow part alone, else t.
+    """A time up to which f > 0 is certified from t on by its first term alone, else t.
 
-    N/m = c + g cos(ω_r t + φ) + (two cam terms of amplitude ≤ |a1| + |a2|) > 0 while
-    cos(ω_r t + φ) > q = (|a1| + |a2| − c)/g: the arc of the wall where no cam phase can detach the rod.
+    f = c + a_0 cos(w_0 t + φ_0) + (other terms, ≤ Σ|a_k| together) > 0 while
+    cos(w_0 t + φ_0) > q = (Σ_{k≥1}|a_k| − c)/a_0; for N/m, a_0 cos(…) = g cos(θ + π/2) is the slow
+    part, so this is the arc of the wall where no cam phase can detach the rod.
     """
-    w, g = tr[i, 4], tr[i, 1]
+    w, g = tr[i, _TW], tr[i, _TA]
     if w <= 0.0 or g <= 0.0:
         return t
-    q = (abs(tr[i, 2]) + abs(tr[i, 3]) - tr[i, 0]) / g
+    rest = 0.0
+    for k in range(1, int(tr[i, _T_COUNT])):
+        rest += abs(tr[i, _TA + k])
+    q = (rest - tr[i, 0]) / g
     if q >= 1.0:
         return t
     if q < -1.0:
         return math.inf
     edge = math.acos(q)
-    r = (w * t + tr[i, 7] + math.pi) % _TWO_PI - math.pi
+    r = (w * t + tr[i, _TP] + math.pi) % _TWO_PI - math.pi
     if -edge < r < edge:
         return t + (edge - r) / w * (1.0 - 1e-9)
     return t
@@ -744,7 +767,114 @@ def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
     t0 = st[i, _S_T0]
     out[_O_TDEP] = t0
     out[_O_THD] = math.atan2(st[i, _S_Y], st[i, _S_X])
+    out[_O_THC] = math.atan2(y, x)
     out[_O_ALD] = (p[_A0] + p[_WV] * t0) % _TWO_PI
+
+
+# -- level (b): the node telemetry's samples, with the no-slip check (telemetry.py, slip.py) -------
+
+
+@njit(cache=True)
+def _slip_rows(p, theta0, mu):  # type: ignore[no-untyped-def]
+    """Rows 0, 1: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
+
+    N is the corrected law in both variants; F_t/m = g_eff cos θ (slip.traction_per_mass).
+    """
+    wr, wv, a0, g = p[_WR], p[_WV], p[_A0], p[_G]
+    half = 0.5 * p[_RD] * wv * wv
+    rows = np.zeros((2, _TRIG_COLUMNS))
+    for r in range(2):
+        sign = -1.0 if r == 0 else 1.0
+        rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 6.0
+        _set_term(rows, r, 0, mu * g, wr, theta0 + 0.5 * math.pi)
+        _set_term(rows, r, 1, mu * half, wv - wr, a0 - theta0)
+        _set_term(rows, r, 2, mu * -half, wv + wr, a0 + theta0)
+        _set_term(rows, r, 3, sign * g, wr, theta0)
+        _set_term(rows, r, 4, sign * -half, wv + wr, a0 + theta0 - 0.5 * math.pi)
+        _set_term(rows, r, 5, sign * -half, wv - wr, a0 - theta0 - 0.5 * math.pi)
+    return rows
+
+
+@njit(cache=True)
+def _slip_onset(p, theta0, mu, t_end):  # type: ignore[no-untyped-def]
+    """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never)."""
+    tr = _slip_rows(p, theta0, mu)
+    st = np.zeros((1, _STATE_COLUMNS))
+    onset = math.inf
+    for r in range(2):
+        if _trig(tr, r, 0.0, 0, 1.0) <= 0.0:
+            return 0.0
+        if t_end > 0.0:
+            onset = min(onset, _falling_zero_windowed(p, st, tr, r, 1.0, 0.0, t_end))
+    return onset
+
+
+TELEMETRY = (
+    "found",
+    "detached",
+    "depart_time_s",
+    "theta_d_rad",
+    "energy_j",
+    "flight_time_s",
+    "on_wall",
+    "theta_contact_rad",
+    "slip_onset_s",
+    "slip_theta_rad",
+)
+"""Columns of a telemetry sample row (:func:`telemetry_samples`)."""
+
+
+@njit(cache=True)
+def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
+    out = np.full((phases, len(TELEMETRY)), math.nan)
+    ev = np.empty(len(OUT))
+    rev = _revolution_s(p_base)
+    lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
+    for k in range(phases):
+        p = p_base.copy()
+        p[_TH0], p[_A0] = theta_start, _TWO_PI * k / phases
+        arc_end = rev
+        if pinned:
+            out[k, 0], out[k, 1] = 0.0, 0.0
+        else:
+            _event(p, False, math.inf, flight_cap, 0.0, ev)
+            detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
+            out[k, 0], out[k, 1] = ev[_O_FOUND], 1.0 if detached else 0.0
+            if ev[_O_FOUND] == 1.0:
+                arc_end = ev[_O_TDEP]
+                out[k, 2], out[k, 3], out[k, 4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
+                out[k, 5], out[k, 6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
+                out[k, 7] = ev[_O_THC]
+            elif detached:
+                arc_end = ev[_O_TD0]
+        # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
+        pb = p.copy()
+        pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
+        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead)
+        if onset < math.inf:
+            out[k, 8] = onset
+            out[k, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+    return out
+
+
+def telemetry_samples(
+    scene_row_: FloatArray, theta_start_rad: float, cam_phases: int, flight_cap_s: float, friction: float, pinned: bool
+) -> FloatArray:
+    """The node telemetry's K samples in one compiled call (columns :data:`TELEMETRY`).
+
+    Sample k: rod 0 pinned at ``theta_start_rad`` with cam phase 2πk/K, its one-rod event
+    (:func:`first_impacts`, ``rods="one"``) and the no-slip check of the same ride from the
+    bottom (slip.no_slip_check); ``pinned``: no phase can detach, only the check, over one revolution.
+    """
+    result: FloatArray = _telemetry(
+        np.ascontiguousarray(scene_row_, dtype=np.float64),
+        float(theta_start_rad),
+        int(cam_phases),
+        float(flight_cap_s),
+        float(friction),
+        bool(pinned),
+    )
+    return result
 
 
 @njit(cache=True)
@@ -787,4 +917,4 @@ def scene_rows(scenes: list[Scene]) -> FloatArray:
     return np.array([scene_row(s) for s in scenes]).reshape(len(scenes), len(PARAMS))
 
 
-__all__ = ["OUT", "PARAMS", "WALL", "first_impacts", "scene_row", "scene_rows"]
+__all__ = ["OUT", "PARAMS", "TELEMETRY", "WALL", "first_impacts", "scene_row", "scene_rows", "telemetry_samples"]

@@ -29,8 +29,8 @@ FloatArray = NDArray[np.float64]
 def vial_centre_m(scene: Scene, t_s: float) -> tuple[float, float, float]:
     """Vial centre height y_c (m), its velocity (m/s) and acceleration (m/s²) at time t (eq. 1b's cam term)."""
     m = scene.model
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * t_s
-    r_d, w = m.eccentricity_m, scene.omega_v_rad_s
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * t_s
+    r_d, w = m.eccentricity_m, scene.lift_omega_rad_s
     y = m.cam_to_vial_m - r_d + r_d * math.sin(alpha)
     return y, r_d * w * math.cos(alpha), -r_d * w * w * math.sin(alpha)
 
@@ -48,8 +48,8 @@ def rod_on_wall(scene: Scene, t_s: float, theta0_rad: float | None = None) -> tu
 def g_eff_m_s2(scene: Scene, t_s: float) -> float:
     """Effective gravity in the vial frame, g − r_d ω_v² sin α (m/s²)."""
     m = scene.model
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * t_s
-    return m.g_m_s2 - m.eccentricity_m * scene.omega_v_rad_s**2 * math.sin(alpha)
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * t_s
+    return m.g_m_s2 - m.eccentricity_m * scene.lift_omega_rad_s**2 * math.sin(alpha)
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,7 @@ def normal_force_per_mass(scene: Scene, theta0_rad: float, variant: ModelVariant
     """
     m = scene.model
     variant = m.variant if variant is None else variant
-    w_r, w_v, a0 = scene.omega_r_rad_s, scene.omega_v_rad_s, scene.alpha0_rad
+    w_r, w_v, a0 = scene.omega_r_rad_s, scene.lift_omega_rad_s, scene.lift_alpha0_rad
     if variant is ModelVariant.CORRECTED:
         constant = m.r0_m * w_r * w_r
         coupling = m.eccentricity_m * w_v * w_v  # + r_d ω_v² sin α sin θ

@@ -31,7 +31,7 @@ from millctl.errors import PhysicsInputError
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import ContactRow
 from millctl.physics.flight import FlightState, WallState, depart
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 
 FloatArray = NDArray[np.float64]
 _CHUNK = 256
@@ -46,9 +46,9 @@ def _lab_arrays(scene: Scene, wall: WallState, flight: FlightState | None, ts: F
         xw, yw = np.where(flying, xf, xw), np.where(flying, yf, yw)
         vxw, vyw = np.where(flying, vxf, vxw), np.where(flying, vyf, vyw)
     m = scene.model
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * ts
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * ts
     yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * np.sin(alpha)
-    vyc = m.eccentricity_m * scene.omega_v_rad_s * np.cos(alpha)
+    vyc = m.eccentricity_m * scene.lift_omega_rad_s * np.cos(alpha)
     return xw, yc + yw, vxw, vyc + vyw, yc, vyc
 
 
@@ -170,4 +170,28 @@ def _averaged(
     return t, i, j, x + r * nx, y + r * ny, rvx * nx + rvy * ny, rvy * nx - rvx * ny, math.hypot(vx, vy)
 
 
-__all__ = ["legacy_first_contact"]
+def arc_wall_sink_m(model: MillModel, q: int) -> float:
+    """How far a rod centre sinks beyond r0 between two of the q wall points (m), eqs 15–17, exact.
+
+    The deepest spot is midway between two points at angles ±π/q on the bore (radius r_v);
+    the rod (radius r_r) touches them when its centre is at ρ = r_v cos(π/q) − √(r_r² − r_v² sin²(π/q)),
+    so the sink is ρ − r0 (leading order :func:`arc_wall_sink_leading_m`).
+    """
+    if q < 3:
+        raise PhysicsInputError(f"q = {q} arcs must be ≥ 3")
+    half = math.pi / q
+    r_v, r_r = model.vial_radius_m, model.rod_radius_m
+    reach = r_r * r_r - (r_v * math.sin(half)) ** 2
+    if reach <= 0.0:
+        raise PhysicsInputError(f"q = {q}: the gap between two wall points exceeds the rod diameter")
+    # ρ − r0 = r_r − √reach − r_v (1 − cos φ), each difference formed without cancellation
+    cos_defect = 2.0 * math.sin(0.5 * half) ** 2
+    return (r_v * math.sin(half)) ** 2 / (r_r + math.sqrt(reach)) - r_v * cos_defect
+
+
+def arc_wall_sink_leading_m(model: MillModel, q: int) -> float:
+    """Leading order of :func:`arc_wall_sink_m`: π² r_v r0 / (2 r_r q²) (m); relative error below (π r_v/(q r_r))²."""
+    return math.pi**2 * model.vial_radius_m * model.r0_m / (2.0 * model.rod_radius_m * q * q)
+
+
+__all__ = ["arc_wall_sink_leading_m", "arc_wall_sink_m", "legacy_first_contact"]

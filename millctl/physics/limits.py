@@ -15,6 +15,9 @@ nothing and stays safe). The laws, with the paper's symbols (docs/model.md):
   phase: √(g (1 − Γ) / r0), Γ = r_d ω_v² / g; no real limit once Γ ≥ 1.
 * ``corrected-best-phase``: the same at the best cam phase, √(g (1 + Γ) / r0).
 
+ω_v is the cam motor's speed; for a double-acting cam every law sees the lift
+speed 2ω_v (:mod:`millctl.physics.cam`), so each envelope moves to half the ω_v.
+
 Numerators are formed as (sum of positive terms) − (sum of negative terms),
 one subtraction at the end, so that nothing cancels before it must: the
 printed order mg − (k − mω_v²) r_d loses digits near its zero.
@@ -22,12 +25,14 @@ printed order mg − (k − mω_v²) r_d loses digits near its zero.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from millctl.config.models import G_M_S2, LimitLaw, MillConfig
+from millctl.config.models import G_M_S2, CamShape, LimitLaw, MillConfig
+from millctl.physics.cam import STROKES_PER_REVOLUTION, lift_speed_array, strokes
 
 FloatArray = NDArray[np.float64]
 
@@ -45,6 +50,8 @@ class LimitParams:
     spring_n_per_m: float
     """k, spring stiffness."""
     g_m_s2: float = G_M_S2
+    cam: CamShape = CamShape.SINGLE
+    """The cam's shape: every law sees the lift speed h·ω_v, not the motor's ω_v (:mod:`.cam`)."""
 
     @classmethod
     def from_config(cls, config: MillConfig) -> LimitParams:
@@ -55,6 +62,7 @@ class LimitParams:
             r0_m=mill.vial.radius_m - mill.rods.radius_m,
             eccentricity_m=mill.cam.eccentricity_m,
             spring_n_per_m=mill.spring.stiffness_n_per_m,
+            cam=CamShape(mill.cam.shape),
         )
 
 
@@ -66,7 +74,7 @@ def _sqrt_positive(numerator: FloatArray, denominator: float) -> FloatArray:
 
 def eq7_denominator(p: LimitParams, omega_v_rad_s: ArrayLike, sin_alpha: ArrayLike) -> FloatArray:
     """Denominator of printed eq. 7, (k − mω_v²) r_d sin α + mg (N), without early cancellation."""
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     s = np.asarray(sin_alpha, dtype=float)
     m, k, r_d = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m
     spring_term = k * r_d * s  # sign follows sin α
@@ -86,7 +94,7 @@ def omega_r_max_eq8a(p: LimitParams, omega_v_rad_s: ArrayLike, sin_alpha: ArrayL
 
 def omega_r_max_paper_eq9(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
     """Printed eq. 9 (rad/s): eq. 8a with sin α = −1, numerator m(g + r_d ω_v²) − k r_d."""
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     m, r_d = p.rod_mass_kg, p.eccentricity_m
     numerator = m * (p.g_m_s2 + r_d * w2) - p.spring_n_per_m * r_d
     return _sqrt_positive(numerator, 2.0 * m * p.r0_m)
@@ -94,7 +102,7 @@ def omega_r_max_paper_eq9(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArra
 
 def omega_r_max_paper_every_cycle(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
     """Eq. 8a at the worst phase sin α = −sign(k − mω_v²) (rad/s): mg − |k − mω_v²| r_d."""
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     m, k, r_d = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m
     stiff = k >= m * w2
     # k ≥ mω_v²: sin α = −1 → (mg + m r_d ω_v²) − k r_d;  k < mω_v²: sin α = +1 → (mg + k r_d) − m r_d ω_v²
@@ -104,7 +112,7 @@ def omega_r_max_paper_every_cycle(p: LimitParams, omega_v_rad_s: ArrayLike) -> F
 
 def vibration_intensity(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
     """Γ = r_d ω_v² / g, the cam's peak acceleration in units of g (dimensionless)."""
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     result: FloatArray = p.eccentricity_m * w2 / p.g_m_s2
     return result
 
@@ -137,6 +145,28 @@ def omega_r_max(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> Floa
     return LAWS[law](p, omega_v_rad_s)
 
 
+def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> float:
+    """ω_r,max (rad/s) of one ω_v in plain ``math``: the interlock's scalar path (well under a microsecond).
+
+    The same formulas, in the same order of operations, as the vectorised laws above,
+    so that every verdict is bitwise the same (``tests/unit/test_limits.py``).
+    """
+    w = STROKES_PER_REVOLUTION[p.cam] * omega_v_rad_s  # the lift speed h·ω_v, as lift_speed_array forms it
+    w2 = w * w
+    m, k, r_d, g = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.g_m_s2
+    if law is LimitLaw.PAPER_EQ9:
+        numerator = m * (g + r_d * w2) - k * r_d
+        return math.sqrt((numerator if numerator > 0.0 else 0.0) / (2.0 * m * p.r0_m))
+    if law is LimitLaw.PAPER_EVERY_CYCLE:
+        numerator = m * (g + r_d * w2) - k * r_d if k >= m * w2 else (m * g + k * r_d) - m * r_d * w2
+        denominator = 2.0 * m * p.r0_m
+    else:
+        gamma = r_d * w2 / g
+        numerator = g * (1.0 - gamma) if law is LimitLaw.CORRECTED_EVERY_PHASE else g * (1.0 + gamma)
+        denominator = p.r0_m
+    return math.sqrt((numerator if numerator > 0.0 else 0.0) / denominator)
+
+
 def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> NDArray[np.bool_]:
     """True where the law guarantees detachment in every cycle of its own model.
 
@@ -147,13 +177,28 @@ def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike
     if law in EVERY_CYCLE_LAWS:
         return np.ones(w.shape, dtype=bool)
     if law is LimitLaw.PAPER_EQ9:
-        return np.asarray(p.spring_n_per_m >= p.rod_mass_kg * np.square(w))
+        return np.asarray(p.spring_n_per_m >= p.rod_mass_kg * np.square(lift_speed_array(p.cam, w)))
     return np.zeros(w.shape, dtype=bool)
 
 
 def switch_omega_v_rad_s(p: LimitParams) -> float:
-    """The ω_v (rad/s) where k = mω_v² and the paper's worst phase flips sign."""
-    return float(np.sqrt(p.spring_n_per_m / p.rod_mass_kg))
+    """The cam speed ω_v (rad/s) where k = m(hω_v)² and the paper's worst phase flips sign."""
+    return float(np.sqrt(p.spring_n_per_m / p.rod_mass_kg)) / strokes(p.cam)
+
+
+def eq9_vacuous_below_rad_s(p: LimitParams) -> float:
+    """The cam speed up to which printed eq. 9's numerator m g − (k − m ω_v²) r_d is ≤ 0 (rad/s); 0 if never.
+
+    The numerator is ≤ 0 while m ω_v² r_d ≤ k r_d − m g, i.e. for ω_v ≤ √(k/m − g/r_d) when k r_d > m g:
+    there eq. 9 admits no rotation at all (the law is vacuous). With k a per-rod effective stiffness
+    (Set A: 92 N/m, k r_d = 0.092 N against m g = 0.869 N) that never happens; a platform spring rate
+    read as k (10⁴–10⁵ N/m) makes eq. 9 vacuous over any drivable cam speed (docs/model.md, errata k).
+    """
+    m, k, r_d = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m
+    excess = k * r_d - m * p.g_m_s2
+    if r_d <= 0.0 or excess <= 0.0:
+        return 0.0
+    return float(np.sqrt(excess / (m * r_d)))
 
 
 def sin_alpha_bound_consistent(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
@@ -164,7 +209,7 @@ def sin_alpha_bound_consistent(p: LimitParams, omega_v_rad_s: ArrayLike) -> Floa
     sin α < mg / ((mω_v² − k) r_d) when k < mω_v² (an upper bound). Returns that
     bound; ±inf where k = mω_v² (every phase admissible).
     """
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     excess = (p.spring_n_per_m - p.rod_mass_kg * w2) * p.eccentricity_m
     with np.errstate(divide="ignore"):
         result: FloatArray = -p.rod_mass_kg * p.g_m_s2 / excess
@@ -173,7 +218,7 @@ def sin_alpha_bound_consistent(p: LimitParams, omega_v_rad_s: ArrayLike) -> Floa
 
 def sin_alpha_bound_printed_eq8b(p: LimitParams, omega_v_rad_s: ArrayLike) -> FloatArray:
     """Printed eq. 8b's right side, m(ω_v² r_d − g)/k (dimensionally inconsistent; kept for the errata)."""
-    w2 = np.square(np.asarray(omega_v_rad_s, dtype=float))
+    w2 = np.square(lift_speed_array(p.cam, omega_v_rad_s))
     result: FloatArray = p.rod_mass_kg * (w2 * p.eccentricity_m - p.g_m_s2) / p.spring_n_per_m
     return result
 
@@ -195,7 +240,7 @@ def regime_flags(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> Reg
     w = np.asarray(omega_v_rad_s, dtype=float)
     return RegimeFlags(
         no_real_limit=omega_r_max(law, p, w) <= 0.0,
-        spring_below_inertia=p.spring_n_per_m < p.rod_mass_kg * np.square(w),
+        spring_below_inertia=p.spring_n_per_m < p.rod_mass_kg * np.square(lift_speed_array(p.cam, w)),
         gamma_ge_1=vibration_intensity(p, w) >= 1.0,
     )
 
@@ -206,6 +251,7 @@ __all__ = [
     "LimitParams",
     "RegimeFlags",
     "eq7_denominator",
+    "eq9_vacuous_below_rad_s",
     "is_every_cycle_bound",
     "omega_r_max",
     "omega_r_max_corrected_best_phase",
@@ -213,6 +259,7 @@ __all__ = [
     "omega_r_max_eq8a",
     "omega_r_max_paper_eq9",
     "omega_r_max_paper_every_cycle",
+    "omega_r_max_scalar",
     "regime_flags",
     "sin_alpha_bound_consistent",
     "sin_alpha_bound_printed_eq8b",

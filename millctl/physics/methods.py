@@ -147,7 +147,7 @@ def _compiled(scene: Scene, tol_s: float, t_end_s: float) -> ImpactEvent | None:
 def wall_angle_rad(scene: Scene, event: ImpactEvent) -> float:
     """Angle of the contact point about the vial centre at the event (rad)."""
     m = scene.model
-    alpha = scene.alpha0_rad + scene.omega_v_rad_s * event.time_s
+    alpha = scene.lift_alpha0_rad + scene.lift_omega_rad_s * event.time_s
     yc = m.cam_to_vial_m - m.eccentricity_m + m.eccentricity_m * math.sin(alpha)
     return math.atan2(event.y_m - yc, event.x_m)
 

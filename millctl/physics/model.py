@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from millctl.config.models import G_M_S2, MillConfig, ModelVariant
+from millctl.config.models import G_M_S2, CamShape, MillConfig, ModelVariant
 from millctl.errors import PhysicsInputError
+from millctl.physics.cam import strokes
 
 
 def _positive(name: str, value: float) -> None:
@@ -56,6 +57,8 @@ class MillModel:
     vial_youngs_pa: float = 200e9
     vial_poisson: float = 0.29
     g_m_s2: float = G_M_S2
+    cam: CamShape = CamShape.SINGLE
+    """Cam shape: circular single-acting (lift r_d sin α) or elliptical double-acting (r_d sin 2α)."""
 
     def __post_init__(self) -> None:
         for name in ("rod_radius_m", "rod_length_m", "rod_mass_kg", "vial_radius_m", "cam_to_vial_m", "g_m_s2"):
@@ -116,6 +119,7 @@ class MillModel:
             rod_poisson=rod_mat.poisson_ratio,
             vial_youngs_pa=vial_mat.youngs_modulus_pa,
             vial_poisson=vial_mat.poisson_ratio,
+            cam=CamShape(mill.cam.shape),
         )
 
 
@@ -124,7 +128,10 @@ class Scene:
     """A mill at constant speeds with initial phases: θ = θ0 + ω_r t, α = α0 + ω_v t (eqs 1–3).
 
     Rod i (0-based) starts pinned to the wall at θ0 + i·2π/n (eq. 11); rod 0 is
-    the paper's "detached rod".
+    the paper's "detached rod". ω_v and α0 are the cam motor's speed and phase;
+    the physics moves the vial with the cam's lift, whose speed and phase are
+    :attr:`lift_omega_rad_s` and :attr:`lift_alpha0_rad` (h·ω_v and h·α0 with h
+    strokes per cam revolution, :mod:`millctl.physics.cam`).
     """
 
     model: MillModel
@@ -143,6 +150,16 @@ class Scene:
                 f"speeds must be ≥ 0 (ω_r = {self.omega_r_rad_s}, ω_v = {self.omega_v_rad_s} rad/s); "
                 "a reversed drive is the mirror image of a forward one"
             )
+
+    @property
+    def lift_omega_rad_s(self) -> float:
+        """Angular frequency of the cam's lift, h·ω_v (rad/s): ω_v of eqs 1–27 for this cam."""
+        return strokes(self.model.cam) * self.omega_v_rad_s
+
+    @property
+    def lift_alpha0_rad(self) -> float:
+        """Initial phase of the cam's lift, h·α0 (rad): α0 of eqs 1–27 for this cam."""
+        return strokes(self.model.cam) * self.alpha0_rad
 
     def rod_theta0_rad(self, rod: int) -> float:
         """Initial angle of rod ``rod`` on the wall (rad), eq. 11."""

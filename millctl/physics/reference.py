@@ -46,8 +46,8 @@ class _Mp:
         self.scene = scene
         self.r0, self.rr = mpf(m.r0_m), mpf(m.rod_radius_m)
         self.g, self.rd, self.l = mpf(m.g_m_s2), mpf(m.eccentricity_m), mpf(m.cam_to_vial_m)
-        self.wr, self.wv = mpf(scene.omega_r_rad_s), mpf(scene.omega_v_rad_s)
-        self.a0 = mpf(scene.alpha0_rad)
+        self.wr, self.wv = mpf(scene.omega_r_rad_s), mpf(scene.lift_omega_rad_s)
+        self.a0 = mpf(scene.lift_alpha0_rad)
         self.k_over_m = mpf(m.spring_n_per_m) / mpf(m.rod_mass_kg)
 
     def theta0(self, rod: int) -> Any:

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from millctl.config.models import ModelVariant
+from millctl.physics.cam import strokes
 from millctl.physics.detachment import find_detachment, first_falling_zero
 from millctl.physics.kinematics import TrigSum, normal_force_per_mass
 from millctl.physics.model import MillModel, Scene
@@ -43,11 +44,15 @@ def traction_ratio(
 ) -> FloatArray:
     """|F_t|/N of the carried rod at wall angle θ and cam phase α (vectorised); inf where N ≤ 0.
 
-    F_t/m = g_eff cos θ, N/m = r0 ω_r² − g_eff sin θ, g_eff = g − r_d ω_v² sin α. The
+    F_t/m = g_eff cos θ, N/m = r0 ω_r² − g_eff sin θ, g_eff = g − r_d ω_v² sin α (ω_v, α of the
+    cam's lift: h·ω_v and h·α for a cam of h strokes per revolution, given the motor's). The
     no-slip assumption holds where the ratio is ≤ μ (``model.powder_friction``).
     """
     theta = np.asarray(theta_rad, dtype=float)
-    g_eff = model.g_m_s2 - model.eccentricity_m * omega_v_rad_s**2 * np.sin(np.asarray(alpha_rad, dtype=float))
+    lift = strokes(model.cam)  # the cam's lift runs at h·ω_v, phase h·α (millctl.physics.cam)
+    g_eff = model.g_m_s2 - model.eccentricity_m * (lift * omega_v_rad_s) ** 2 * np.sin(
+        lift * np.asarray(alpha_rad, dtype=float)
+    )
     normal = model.r0_m * omega_r_rad_s**2 - g_eff * np.sin(theta)
     traction = np.abs(g_eff * np.cos(theta))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -61,7 +66,7 @@ def traction_per_mass(scene: Scene, theta0_rad: float) -> TrigSum:
     g cos θ − r_d ω_v² sin α cos θ, with sin α cos θ = ½[sin(α + θ) + sin(α − θ)].
     """
     m = scene.model
-    w_r, w_v, a0 = scene.omega_r_rad_s, scene.omega_v_rad_s, scene.alpha0_rad
+    w_r, w_v, a0 = scene.omega_r_rad_s, scene.lift_omega_rad_s, scene.lift_alpha0_rad
     half = 0.5 * m.eccentricity_m * w_v * w_v
     return TrigSum(
         constant=0.0,

@@ -1,6 +1,6 @@
 """Level (b), node telemetry: a per-revolution summary cheap enough to run live.
 
-For K cam phases α0 (default 4, evenly spaced) one rod starts pinned at the
+For K cam phases α0 (default 4, evenly spaced over one lift cycle) one rod starts pinned at the
 lowest angle where it could possibly detach (sin θ = A/(g + c) for N/m = A − g_eff sin θ,
 g_eff ∈ [g − c, g + c]; the bottom when g − c < 0), with cam phase α0 there, and is
 followed with the exact engine through one revolution: detachment (eq. 7 or the
@@ -25,11 +25,11 @@ too). From the K samples:
   :func:`~millctl.physics.slip.no_slip_check`; ``slip_onset_theta_rad`` is the
   circular mean of where that starts.
 
-Cost: milliseconds per call, roughly K times one exact detachment-and-flight
-search, less where no phase can detach and more at a few rpm, where the rod
-rides through many cam cycles before its first chance (measured by
-``python -m bench``, docs/benchmarks.md §2). That is more than a 10 ms node
-tick, so the node runs it on a worker thread when the speeds have moved, and
+Cost: about 0.1 ms per call with the compiled kernels (``engine="compiled"``,
+the default: :func:`millctl.physics.kernels.telemetry_samples`, K one-rod events
+and slip checks in one call), milliseconds with the numpy reference
+(``engine="reference"``, the same numbers); measured by ``python -m bench``,
+docs/benchmarks.md §2. The node computes every summary inside its tick;
 :class:`SummaryCache` answers repeated queries on a 1 rpm grid. Below ``MIN_OMEGA_R_RAD_S`` (1 rpm) the vial is treated
 as standing still: rods pinned, no impacts, no shear.
 
@@ -47,6 +47,8 @@ from dataclasses import dataclass
 
 from millctl.config.models import ModelVariant
 from millctl.errors import PhysicsInputError
+from millctl.physics import kernels
+from millctl.physics.cam import strokes
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import RodState, WallState, depart
@@ -146,71 +148,126 @@ def _carriage_from_bottom(scene: Scene, arc_end_s: float) -> NoSlipCheck:
 
 
 def _sample(scene: Scene) -> tuple[tuple[float, float, float, float, bool] | None, NoSlipCheck]:
-    """One cam phase: (θ_d, energy J, cycles per revolution, flight s, hit the wall) or None if pinned; slip check."""
+    """One cam phase: (θ_d, energy J, cycles per revolution, flight s, hit the wall) or None if pinned; slip check.
+
+    A zero-length flight (flight.zero_length_departure) is no impact: the rod is held through the
+    dip of N and the search goes on within the revolution (docs/model.md, zero-length flights).
+    """
     model = scene.model
     det = find_detachment(scene)
-    check = _carriage_from_bottom(scene, det.time_s if det.detached else det.horizon_s)
-    if not det.detached:
-        return None, check
-    wall0 = WallState(0.0, scene.theta0_rad)
-    flight = depart(scene, wall0, det.time_s)
-    states: list[RodState] = [flight]
-    states += [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(1, model.n_rods)]
-    n_d = 0.0
-    if model.variant is not ModelVariant.CORRECTED or det.at_start:
-        n_d = model.r0_m * true_normal_force_per_mass(scene, det.time_s, det.theta_rad)
-    contact = earliest_contact(scene, states, det.time_s, det.time_s + _FLIGHT_CAP_S, {0: n_d}, rods=[0])
+    while True:
+        if not det.detached:
+            return None, _carriage_from_bottom(scene, det.horizon_s)
+        wall0 = WallState(0.0, scene.theta0_rad)
+        flight = depart(scene, wall0, det.time_s)
+        states: list[RodState] = [flight]
+        states += [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(1, model.n_rods)]
+        n_d = 0.0
+        if model.variant is not ModelVariant.CORRECTED or det.at_start:
+            n_d = model.r0_m * true_normal_force_per_mass(scene, det.time_s, det.theta_rad)
+        contact = earliest_contact(scene, states, det.time_s, det.time_s + _FLIGHT_CAP_S, {0: n_d}, rods=[0])
+        if contact is None or not (contact.partner == WALL and contact.flight_time_s == 0.0):
+            break
+        det = find_detachment(scene, t_start_s=det.time_s, horizon_s=det.horizon_s, rearm=True)
+    check = _carriage_from_bottom(scene, det.time_s)
     if contact is None:
         return None, check
     t_f = contact.flight_time_s  # the root in the flight's own clock: no cancellation of t_contact − t_d
     _, _, vx, vy = flight.rel(scene, contact.time_s)
-    vyc = model.eccentricity_m * scene.omega_v_rad_s * math.cos(scene.alpha0_rad + scene.omega_v_rad_s * contact.time_s)
+    w_lift = scene.lift_omega_rad_s
+    vyc = model.eccentricity_m * w_lift * math.cos(scene.lift_alpha0_rad + w_lift * contact.time_s)
     speed_abs = math.hypot(vx, vy + vyc)
     on_wall = contact.partner == WALL
     energy = impact_energy_j(model, contact.normal_velocity_m_s, speed_abs, backed=True)  # partners are held
-    if on_wall:
-        x, y, _, _ = flight.rel(scene, contact.time_s)
-        travel = (det.theta_rad - math.atan2(y, x)) % (2.0 * math.pi)
-        cycle_s = t_f + travel / scene.omega_r_rad_s
-        per_rev = 2.0 * math.pi / (scene.omega_r_rad_s * cycle_s) if cycle_s > 0.0 else 1.0
-    else:
-        per_rev = 1.0
+    x, y, _, _ = flight.rel(scene, contact.time_s)
+    per_rev = _per_rev(scene.omega_r_rad_s, det.theta_rad, math.atan2(y, x), t_f, on_wall)
     return (det.theta_rad, energy, per_rev, t_f, on_wall), check
 
 
+Sample = tuple[float, float, float, float, bool]
+"""(θ_d, energy J, cycles per revolution, flight s, hit the wall) of one cam phase."""
+
+
+def _per_rev(omega_r: float, theta_d: float, theta_contact: float, flight_s: float, on_wall: bool) -> float:
+    """Impacts per rod and revolution of one sample: 2π/(ω_r T), T = flight + wall travel back to θ_d."""
+    if not on_wall:
+        return 1.0
+    travel = (theta_d - theta_contact) % (2.0 * math.pi)
+    cycle_s = flight_s + travel / omega_r
+    return 2.0 * math.pi / (omega_r * cycle_s) if cycle_s > 0.0 else 1.0
+
+
+def _compiled_samples(
+    model: MillModel, w_r: float, w_v: float, theta_start: float | None, cam_phases: int
+) -> tuple[list[Sample], list[float]]:
+    """The K samples and the slip onsets (wall angles) from the compiled kernel (:func:`kernels.telemetry_samples`)."""
+    pinned = theta_start is None
+    start = -0.5 * math.pi if theta_start is None else theta_start
+    row = kernels.scene_row(Scene(model, w_r, w_v, start, 0.0))
+    table = kernels.telemetry_samples(row, start, cam_phases, _FLIGHT_CAP_S, model.powder_friction, pinned)
+    col = {name: table[:, k] for k, name in enumerate(kernels.TELEMETRY)}
+    samples: list[Sample] = []
+    for k in range(cam_phases):
+        if col["found"][k] == 1.0:
+            theta_d, flight, on_wall = (
+                float(col["theta_d_rad"][k]),
+                float(col["flight_time_s"][k]),
+                col["on_wall"][k] == 1.0,
+            )
+            per_rev = _per_rev(w_r, theta_d, float(col["theta_contact_rad"][k]), flight, on_wall)
+            samples.append((theta_d, float(col["energy_j"][k]), per_rev, flight, on_wall))
+    onsets = [float(x) for x in col["slip_theta_rad"] if math.isfinite(x)]
+    return samples, onsets
+
+
+def _reference_samples(
+    model: MillModel, w_r: float, w_v: float, theta_start: float | None, cam_phases: int
+) -> tuple[list[Sample], list[float]]:
+    """The same from the numpy/scipy reference engine."""
+    if theta_start is None:  # pinned at every phase: check the carriage over a revolution from the bottom
+        lift_cycle = 2.0 * math.pi / strokes(model.cam)
+        bottom = [Scene(model, w_r, w_v, -0.5 * math.pi, lift_cycle * k / cam_phases) for k in range(cam_phases)]
+        checks = [no_slip_check(s, horizon_s=2.0 * math.pi / w_r) for s in bottom]
+        return [], [c.onset_theta_rad for c in checks if c.violated]
+    samples: list[Sample] = []
+    checks = []
+    for k in range(cam_phases):
+        # evenly spaced lift phases: a double-acting cam repeats its lift twice per cam revolution
+        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / (cam_phases * strokes(model.cam)))
+        result, check = _sample(scene)
+        checks.append(check)
+        if result is not None:
+            samples.append(result)
+    return samples, [c.onset_theta_rad for c in checks if c.violated]
+
+
 def revolution_summary(
-    model: MillModel, omega_r_rad_s: float, omega_v_rad_s: float, cam_phases: int = 4
+    model: MillModel, omega_r_rad_s: float, omega_v_rad_s: float, cam_phases: int = 4, engine: str = "compiled"
 ) -> RevolutionSummary:
     """Level-(b) summary of one revolution at constant speeds (rad/s); never raises at standstill.
 
-    Negative speeds are mirror images and are taken by magnitude.
+    Negative speeds are mirror images and are taken by magnitude. ``engine``:
+    ``"compiled"`` (:mod:`.kernels`, the node's) or ``"reference"`` (numpy/scipy), same answers.
     """
     if not (math.isfinite(omega_r_rad_s) and math.isfinite(omega_v_rad_s)):
         raise PhysicsInputError(f"speeds must be finite, got ω_r = {omega_r_rad_s}, ω_v = {omega_v_rad_s} rad/s")
     if cam_phases < 1:
         raise PhysicsInputError(f"cam_phases = {cam_phases} must be ≥ 1")
+    if engine not in ("compiled", "reference"):
+        raise PhysicsInputError(f"engine = {engine!r}: choose 'compiled' or 'reference'")
     w_r, w_v = abs(omega_r_rad_s), abs(omega_v_rad_s)
     if w_r < MIN_OMEGA_R_RAD_S:
         return _pinned(0.0)
     shear = _mean_shear_pa(model, w_r)
     theta_start = _start_angle_rad(model, w_r, w_v)
-    if theta_start is None:  # pinned at every phase: check the carriage over a revolution from the bottom
-        bottom = [Scene(model, w_r, w_v, -0.5 * math.pi, 2.0 * math.pi * k / cam_phases) for k in range(cam_phases)]
-        return _pinned(shear, [no_slip_check(s, horizon_s=2.0 * math.pi / w_r) for s in bottom])
-    samples = []
-    checks = []
-    for k in range(cam_phases):
-        scene = Scene(model, w_r, w_v, theta_start, 2.0 * math.pi * k / cam_phases)
-        result, check = _sample(scene)
-        checks.append(check)
-        if result is not None:
-            samples.append(result)
+    sampler = _compiled_samples if engine == "compiled" else _reference_samples
+    samples, onsets = sampler(model, w_r, w_v, theta_start, cam_phases)
+    violated, onset = bool(onsets), _circular_mean(onsets)
     if not samples:
-        return _pinned(shear, checks)
+        return RevolutionSummary(False, math.nan, 0.0, 0.0, 0.0, shear, 0.0, 0.0, math.nan, math.nan, violated, onset)
     count = len(samples)
     fraction = count / cam_phases
     theta_d = _circular_mean([s[0] for s in samples])
-    violated, onset = _slip_flag(checks)
     p = fraction * sum(s[2] for s in samples) / count
     rate = impact_rate_hz(model, p, w_r)
     energy = sum(s[1] for s in samples) / count

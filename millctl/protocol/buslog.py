@@ -6,6 +6,11 @@ and decode with ``cantools decode --single-line config/millbus.dbc < FILE.log``.
 When the current file reaches ``rotate_bytes`` it is renamed
 ``<stem>_<time>_#NNN<suffix>`` and a new one started; only the newest
 ``keep_files`` rotated files are kept (``[service]`` in the config).
+
+A candump ``.log`` is written line by line, unbuffered, through
+:class:`AppendOnlyText`: a line the disk has no room for is cut back off the
+file, so a full disk never leaves a torn line in the middle of the log, and
+writing resumes after the last complete line once there is room again.
 """
 
 from __future__ import annotations
@@ -16,10 +21,49 @@ from pathlib import Path
 from typing import Any
 
 import can
+from can.io.canutils import CanutilsLogWriter
 
 log = logging.getLogger(__name__)
 
 SUPPORTED_SUFFIXES = (".log", ".blf")
+
+
+LOG_MODE = 0o640
+"""Bus logs are rw for the service's user, readable by its group, nothing for others."""
+
+
+class AppendOnlyText:
+    """A text file that only grows by whole writes: a write that fails part-way is cut back off (``os.ftruncate``)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, LOG_MODE)
+        self._size = os.lseek(self._fd, 0, os.SEEK_END)
+
+    def write(self, text: str) -> int:
+        """Append ``text`` whole, or raise with the file as it was."""
+        data = memoryview(text.encode())
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+        except OSError:
+            os.ftruncate(self._fd, self._size)
+            raise
+        self._size += len(text.encode())
+        return len(text)
+
+    def tell(self) -> int:
+        """The file's size (bytes)."""
+        return self._size
+
+    def flush(self) -> None:
+        """Nothing is buffered."""
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
 
 
 class RotatingBusLog(can.SizedRotatingLogger):
@@ -35,6 +79,12 @@ class RotatingBusLog(can.SizedRotatingLogger):
         self.path = path
         self.keep_files = keep_files
         super().__init__(base_filename=path, max_bytes=rotate_bytes, **writer_kwargs)
+
+    def _get_new_writer(self, filename: Any) -> Any:
+        """A candump writer on an :class:`AppendOnlyText` (python-can's own for ``.blf``)."""
+        if Path(filename).suffix.lower() == ".log":
+            return CanutilsLogWriter(AppendOnlyText(Path(filename)))  # type: ignore[arg-type]
+        return super()._get_new_writer(filename)
 
     def rotated_files(self) -> list[Path]:
         """The rotated (closed) files of this log, oldest first."""
@@ -52,4 +102,4 @@ class RotatingBusLog(can.SizedRotatingLogger):
                 log.warning("cannot delete old bus log %s: %s", old, exc)
 
 
-__all__ = ["SUPPORTED_SUFFIXES", "RotatingBusLog"]
+__all__ = ["LOG_MODE", "SUPPORTED_SUFFIXES", "AppendOnlyText", "RotatingBusLog"]

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 from millctl.config.models import MillConfig
+from millctl.physics.dose import dose_rate_j_g_s
 from millctl.physics.model import MillModel
 from millctl.physics.telemetry import RevolutionSummary, revolution_summary
 from millctl.recipes.schema import HoldStep, PauseStep, RampStep, Recipe, WaitFurnaceStep
@@ -55,6 +56,10 @@ class StepPlan:
     note: str = ""
     physics: RevolutionSummary | None = None
     """What the physics model expects at the step's setpoints (level-(b) summary)."""
+    dose_kj_g: float = 0.0
+    """Expected specific energy dose of the step (kJ per g of powder)."""
+    dose_target_kj_g: float | None = None
+    """The dose the step mills to (a dose-targeted hold), else None."""
 
 
 @dataclass(frozen=True)
@@ -67,11 +72,18 @@ class RecipePlan:
     law: str
     margin: float
     notes: tuple[str, ...] = field(default=())
+    powder_charge_g: float = math.nan
+    """Powder in the vial (g) the doses are per gram of."""
 
     @property
     def ok(self) -> bool:
         """True when no step leaves the envelope."""
         return not self.violations
+
+    @property
+    def total_dose_kj_g(self) -> float:
+        """Expected specific energy dose of the whole recipe (kJ/g)."""
+        return sum(s.dose_kj_g for s in self.steps)
 
     @property
     def total_s(self) -> float:
@@ -98,6 +110,7 @@ class _Walker:
         self.steps: list[StepPlan] = []
         self.model = MillModel.from_config(config)
         self._physics: dict[SpeedPoint, RevolutionSummary] = {}
+        self.powder_g = recipe.recipe.powder_charge_g or config.mill.powder.charge_g
 
     def physics(self, point: SpeedPoint) -> RevolutionSummary:
         """The expected per-revolution physics at a speed pair (cached per pair)."""
@@ -106,6 +119,10 @@ class _Walker:
                 self.model, rpm_to_rad_s(point.omega_r_rpm), rpm_to_rad_s(point.omega_v_rpm)
             )
         return self._physics[point]
+
+    def dose_rate_j_g_s(self, point: SpeedPoint) -> float:
+        """Expected specific energy dose rate at a speed pair (J/g/s)."""
+        return dose_rate_j_g_s(self.model, self.physics(point), self.powder_g)
 
     def ramp(self, index: int, step: RampStep) -> None:
         defaults = self.recipe.defaults
@@ -128,6 +145,10 @@ class _Walker:
         if step.furnace_c is not None:
             duration = max(duration, self._furnace(index, step))
         margin = move.min_margin_rpm(self.envelope) if move is not None else -math.inf
+        # the speeds move for the trajectory's time (trapezoid of the end rates), then sit at the target
+        moving_s = move.duration_s if move is not None else 0.0
+        rate_from, rate_to = self.dose_rate_j_g_s(self.point), self.dose_rate_j_g_s(target)
+        dose_j_g = 0.5 * (rate_from + rate_to) * moving_s + rate_to * (duration - moving_s)
         self.steps.append(
             StepPlan(
                 index,
@@ -141,6 +162,7 @@ class _Walker:
                 move,
                 step.note,
                 self.physics(target),
+                dose_j_g * 1e-3,
             )
         )
         self.t_s += duration
@@ -156,7 +178,30 @@ class _Walker:
         self.furnace_c = step.furnace_c
         return abs(step.furnace_c - start_c) / rate * 60.0
 
-    def fixed(self, index: int, kind: str, duration_s: float, open_ended: bool, note: str) -> None:
+    def dose_hold(self, index: int, step: HoldStep) -> None:
+        """A hold that ends at a dose: its duration is the dose over the expected dose rate at the setpoints."""
+        assert step.dose_kj_g is not None
+        rate = self.dose_rate_j_g_s(self.point)
+        if rate <= 0.0:
+            at = f"{self.point.omega_r_rpm:.0f}/{self.point.omega_v_rpm:.0f} rpm"
+            self.violations.append(
+                Violation(
+                    index,
+                    self.t_s,
+                    "dose",
+                    0.0,
+                    step.dose_kj_g,
+                    f"mill until {step.dose_kj_g:g} kJ/g at {at}: the model expects no impacts there "
+                    "(rods pinned or standing still), so the step would never end (docs/operations.md#dose-steps)",
+                )
+            )
+            self.fixed(index, "hold", 0.0, True, step.note, step.dose_kj_g)
+            return
+        self.fixed(index, "hold", step.dose_kj_g * 1e3 / rate, False, step.note, step.dose_kj_g)
+
+    def fixed(
+        self, index: int, kind: str, duration_s: float, open_ended: bool, note: str, dose_target: float | None = None
+    ) -> None:
         margin = float(self.envelope.check(self.point.omega_r_rpm, self.point.omega_v_rpm).margin_rpm)
         if self.point.omega_r_rpm == 0.0:
             margin = math.inf
@@ -173,6 +218,8 @@ class _Walker:
                 None,
                 note,
                 self.physics(self.point),
+                self.dose_rate_j_g_s(self.point) * duration_s * 1e-3,
+                dose_target,
             )
         )
         self.t_s += duration_s
@@ -182,7 +229,11 @@ class _Walker:
             if isinstance(step, RampStep):
                 self.ramp(index, step)
             elif isinstance(step, HoldStep):
-                self.fixed(index, "hold", step.seconds, False, step.note)
+                seconds = step.seconds
+                if seconds is None:
+                    self.dose_hold(index, step)
+                else:
+                    self.fixed(index, "hold", seconds, False, step.note)
             elif isinstance(step, WaitFurnaceStep):
                 if self.furnace_c is None:
                     self.violations.append(
@@ -205,6 +256,7 @@ class _Walker:
             violations=tuple(self.violations),
             law=self.envelope.law.value,
             margin=self.envelope.margin,
+            powder_charge_g=self.powder_g,
         )
 
 

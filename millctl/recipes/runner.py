@@ -23,9 +23,13 @@ from typing import Any
 from millctl import __version__
 from millctl.api import RunState
 from millctl.clock import Clock
+from millctl.config.models import ModelVariant
 from millctl.controller import CommandRefused, Controller, ControllerState
 from millctl.errors import InterlockError
+from millctl.physics.dose import whole_mill_rate_hz
+from millctl.protocol import PhysicsTelemetry
 from millctl.recipes.plan import RecipePlan, StepPlan
+from millctl.recipes.samples import DEFAULT_SAMPLE_S, RunSampler
 from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
 from millctl.records import RecordQueue, RecordWriter
 
@@ -60,6 +64,7 @@ class RecipeRunner:
         config_sha256: str,
         source: str = "recipe",
         records: RecordQueue | None = None,
+        sample_s: float = DEFAULT_SAMPLE_S,
     ) -> None:
         if not plan.ok:
             raise InterlockError(f"recipe {loaded.source} does not pass its pre-flight: {plan.violations[0]}")
@@ -82,6 +87,10 @@ class RecipeRunner:
         self._pause_at_boundary = False
         self._arm_sent = False
         self._finish_as = RunState.DONE
+        self._dose_j_g = 0.0
+        """Specific energy dose of the current step so far (J/g), from the node's physics telemetry."""
+        self._dose_clock_s = clock.now()
+        self.sampler = RunSampler(sample_s, self._dose_rate_j_g_s, clock.now())
         self.record = RecordWriter(Path(records_dir) / "runs", self.run_id, rotate_bytes=1 << 30, keep=1, queue=records)
         self._write(
             "start",
@@ -94,6 +103,9 @@ class RecipeRunner:
             margin=plan.margin,
             steps=len(plan.steps),
             planned_s=plan.total_s,
+            sample_s=sample_s,
+            powder_charge_g=plan.powder_charge_g,
+            furnace_band_c=loaded.recipe.defaults.tolerances.furnace_c,
         )
 
     # ------------------------------------------------------------------ record
@@ -129,6 +141,7 @@ class RecipeRunner:
             raise CommandRefused(f"cannot resume a run that is {self.state}")
         self._pause_at_boundary = False
         self._step_started_s = self.clock.now()
+        self._dose_clock_s = self.clock.now()
         if self.index < len(self.steps) and isinstance(self.steps[self.index], RampStep):
             self._step_begun = False  # re-issue the ramp from where the mill is now
         self._enter(RunState.RUNNING, f"resumed by {source}")
@@ -182,6 +195,9 @@ class RecipeRunner:
         if self.finished:
             return
         c = self.controller
+        due = self.sampler.due(c, self.clock.now())
+        if due is not None:
+            self._write("sample", step=min(self.index + 1, len(self.steps)), run_state=str(self.state), **due)
         if c.state is S.TRIPPED and self.state is not RunState.STOPPING:
             self._write("trip", cause=c.trip_cause, step=self.index + 1)
             self._enter(RunState.FAILED, f"interlock trip: {c.trip_cause}")
@@ -216,7 +232,9 @@ class RecipeRunner:
         if self.state is not RunState.RUNNING:
             return
         if self._step_done(now):
-            self._write("step_end", step=self.index + 1, kind=self.steps[self.index].kind)
+            self._write(
+                "step_end", step=self.index + 1, kind=self.steps[self.index].kind, dose_kj_g=self._dose_j_g * 1e-3
+            )
             self.index += 1
             if self.index >= len(self.steps):
                 self._stop(RunState.DONE, "recipe complete")
@@ -234,6 +252,8 @@ class RecipeRunner:
         self._step_started_s = self.clock.now()
         self._step_elapsed_s = 0.0
         self._step_begun = False
+        self._dose_j_g = 0.0
+        self._dose_clock_s = self.clock.now()
         self._write("step_start", step=self.index + 1, kind=step.kind, planned_s=self.plan.steps[self.index].duration_s)
         if isinstance(step, PauseStep):
             self._enter(RunState.PAUSED, step.message)
@@ -276,7 +296,10 @@ class RecipeRunner:
             return settled
         if isinstance(step, HoldStep):
             self._check_furnace_band(step)
-            return self.state is RunState.RUNNING and elapsed >= step.seconds
+            seconds = step.seconds
+            if seconds is None:
+                return self._dose_reached(step, now, elapsed)
+            return self.state is RunState.RUNNING and elapsed >= seconds
         if isinstance(step, WaitFurnaceStep):
             furnace = c.furnace
             target = c.furnace_target_c
@@ -288,6 +311,31 @@ class RecipeRunner:
                 )
             return False
         return self.state is RunState.RUNNING  # a pause step ends when resumed
+
+    def _dose_rate_j_g_s(self) -> float:
+        """The node's current specific energy dose rate (J/g/s): its impact rate × energy per gram of powder."""
+        last = self.controller.tracker.tracks[PhysicsTelemetry].last
+        if not isinstance(last, PhysicsTelemetry) or not last.detached:
+            return 0.0
+        config = self.controller.config
+        rate = whole_mill_rate_hz(ModelVariant(config.model.variant), config.mill.rods.count, last.impact_rate_hz)
+        return rate * last.impact_energy_mj * 1e-3 / self.plan.powder_charge_g
+
+    def _dose_reached(self, step: HoldStep, now: float, elapsed: float) -> bool:
+        """Integrate the dose while running; done at the step's dose. Fails past twice the planned time."""
+        assert step.dose_kj_g is not None
+        if self.state is RunState.RUNNING:
+            self._dose_j_g += self._dose_rate_j_g_s() * max(now - self._dose_clock_s, 0.0)
+        self._dose_clock_s = now
+        if self._dose_j_g >= step.dose_kj_g * 1e3:
+            return self.state is RunState.RUNNING
+        planned = self.plan.steps[self.index].duration_s
+        if elapsed > 2.0 * planned + SETTLE_TIMEOUT_S:
+            raise CommandRefused(
+                f"dose step: {self._dose_j_g * 1e-3:.4g} of {step.dose_kj_g:g} kJ/g after {elapsed:.0f} s, "
+                f"more than twice the planned {planned:.0f} s (is the node reporting impacts?)"
+            )
+        return False
 
     def _check_furnace_band(self, step: HoldStep) -> None:
         c = self.controller

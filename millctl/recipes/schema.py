@@ -8,11 +8,14 @@ A recipe is a sequence of steps, each a table in ``[[steps]]`` with a
   planner order the two drives so every instant stays inside the envelope,
   ``path = "linear"`` moves both together and is refused where the straight
   line leaves the envelope;
-* ``hold`` — keep the setpoints for a duration;
+* ``hold`` — keep the setpoints for a duration, or until a specific energy
+  dose (``dose_kj_g``, kJ per g of powder: "mill until D kJ/g");
 * ``wait_furnace`` — wait until the furnace is within a band of its setpoint;
 * ``pause`` — wait for the operator to resume.
 
-Durations take one of ``duration_s``, ``duration_min`` or ``duration_h``.
+Durations take one of ``duration_s``, ``duration_min`` or ``duration_h``; a
+hold may give ``dose_kj_g`` instead. The powder charge of the dose is the
+recipe's ``powder_charge_g``, else the configuration's ``mill.powder.charge_g``.
 Unknown keys are errors (see docs/operations.md#recipes).
 """
 
@@ -44,23 +47,26 @@ class _Timed(_Strict):
     duration_s: Annotated[float, Field(gt=0.0, le=7 * 86_400.0)] | None = None
     duration_min: Annotated[float, Field(gt=0.0, le=7 * 1_440.0)] | None = None
     duration_h: Annotated[float, Field(gt=0.0, le=7 * 24.0)] | None = None
+    dose_kj_g: Annotated[float, Field(gt=0.0, le=1e6)] | None = None
+    """Mill until this specific energy dose (kJ per g of powder) instead of for a duration."""
 
     @model_validator(mode="after")
     def _one_duration(self) -> _Timed:
-        given = [v for v in (self.duration_s, self.duration_min, self.duration_h) if v is not None]
+        given = [v for v in (self.duration_s, self.duration_min, self.duration_h, self.dose_kj_g) if v is not None]
         if len(given) != 1:
-            raise ValueError(f"give exactly one of duration_s, duration_min, duration_h (got {len(given)})")
+            raise ValueError(f"give exactly one of duration_s, duration_min, duration_h, dose_kj_g (got {len(given)})")
         return self
 
     @property
-    def seconds(self) -> float:
-        """The duration in seconds."""
+    def seconds(self) -> float | None:
+        """The duration in seconds; None when the step ends at a dose (its time comes from the plan)."""
         if self.duration_s is not None:
             return self.duration_s
         if self.duration_min is not None:
             return self.duration_min * 60.0
-        assert self.duration_h is not None
-        return self.duration_h * 3_600.0
+        if self.duration_h is not None:
+            return self.duration_h * 3_600.0
+        return None
 
 
 class RampStep(_Strict):
@@ -79,7 +85,7 @@ class RampStep(_Strict):
 
 
 class HoldStep(_Timed):
-    """Keep the current setpoints for a duration."""
+    """Keep the current setpoints for a duration, or until a specific energy dose."""
 
     kind: Literal["hold"]
     tolerances: Tolerances | None = None
@@ -111,6 +117,8 @@ class Metadata(_Strict):
     name: Annotated[str, Field(min_length=1, max_length=200)]
     material_system: str = ""
     operator_note: str = ""
+    powder_charge_g: Annotated[float, Field(gt=0.0, le=10_000.0)] | None = None
+    """Powder in the vial (g), for dose steps; default: the configuration's ``mill.powder.charge_g``."""
 
 
 class Defaults(_Strict):

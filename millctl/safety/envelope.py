@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from millctl.config.models import LimitLaw, MillConfig
 from millctl.errors import InterlockError
-from millctl.physics.limits import LimitParams, is_every_cycle_bound, omega_r_max
-from millctl.units import rad_s_to_rpm, rpm_to_rad_s
+from millctl.physics.limits import LimitParams, is_every_cycle_bound, omega_r_max, omega_r_max_scalar
+from millctl.units import RPM_PER_RAD_S, rad_s_to_rpm, rpm_to_rad_s
 
 DOC_REF = "docs/safety.md#setpoint-interlock"
 
@@ -89,10 +89,13 @@ class Envelope:
     max_heating_rate_c_per_min: float
     measurement_tolerance_rpm: float = 0.0
     _law_text: str = field(init=False, repr=False)
+    _keep: float = field(init=False, repr=False)
+    """1 − margin, formed once."""
 
     def __post_init__(self) -> None:
         law_text = f"{self.law.value} ({_LAW_EQUATION[self.law]}), margin {self.margin:.0%}"
         object.__setattr__(self, "_law_text", law_text)
+        object.__setattr__(self, "_keep", 1.0 - self.margin)
 
     @classmethod
     def from_config(cls, config: MillConfig, law: LimitLaw | None = None) -> Envelope:
@@ -130,6 +133,29 @@ class Envelope:
         """True where the configured law is the every-cycle detachment bound at ω_v."""
         return is_every_cycle_bound(self.law, self.params, rpm_to_rad_s(np.asarray(omega_v_rpm, float)))
 
+    def limit_rpm(self, omega_v_rpm: float) -> float:
+        """Scalar :meth:`omega_r_limit_rpm` in plain ``math`` (rpm): margin and absolute limit applied."""
+        law_rpm = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
+        return min(self._keep * law_rpm, self.rotary_max_rpm)
+
+    def allows(self, omega_r_rpm: float, omega_v_rpm: float, tolerance_rpm: float = 0.0) -> bool:
+        """The inside-test of one speed pair (rpm) in plain ``math``: the rule of :meth:`contains`, ≤ 1 µs.
+
+        Bitwise the same verdict as :meth:`contains` and ``check(...).ok`` (tests/unit/test_limits.py).
+        """
+        if not (omega_r_rpm >= 0.0 and omega_v_rpm >= 0.0 and math.isfinite(omega_r_rpm + omega_v_rpm)):
+            return False
+        if omega_v_rpm > self.vibration_max_rpm + tolerance_rpm:
+            return False
+        if omega_r_rpm == 0.0:
+            return True
+        law_rpm = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
+        return omega_r_rpm <= min(self._keep * law_rpm, self.rotary_max_rpm) + tolerance_rpm
+
+    def allows_measured(self, omega_r_rpm: float, omega_v_rpm: float) -> bool:
+        """:meth:`allows` with the configured measurement tolerance."""
+        return self.allows(omega_r_rpm, omega_v_rpm, self.measurement_tolerance_rpm)
+
     def contains(self, omega_r_rpm: ArrayLike, omega_v_rpm: ArrayLike, tolerance_rpm: float = 0.0) -> NDArray[np.bool_]:
         """Vectorised inside-test of speed pairs (rpm); the same rule as :meth:`check`."""
         w_r = np.asarray(omega_r_rpm, float)
@@ -164,7 +190,7 @@ class Envelope:
                     f"{self.vibration_max_rpm:.1f} rpm (drives.vibration.max_speed_rpm)",
                 )
             )
-        law_limit = float(self.law_limit_rpm(omega_v_rpm))
+        law_limit = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
         limit = min((1.0 - self.margin) * law_limit, self.rotary_max_rpm)
         if omega_r_rpm != 0.0 and omega_r_rpm > limit + tolerance_rpm:
             digits = 1 if f"{omega_r_rpm:.1f}" != f"{limit:.1f}" else 3  # show the difference

@@ -82,6 +82,7 @@ class RecipeSlot:
             config_sha256=self.config_sha256,
             source=source,
             records=self.records,
+            sample_s=self.controller.config.service.run_sample_s,
         )
         return self.runner.progress()
 

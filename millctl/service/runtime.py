@@ -270,7 +270,7 @@ class ServiceRuntime:
         """What the operator must know about the service itself (records that cannot be written)."""
         if self.records_warning is None:
             return []
-        return [f"records: {self.records_warning} ({self.records.lost} records lost so far; "
+        return [f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
                 f"records dir {self.records_dir}); the mill is controlled as before"]
 
     def _records_changed(self, failing: str | None) -> None:

@@ -19,19 +19,19 @@ from textual.binding import Binding, BindingType
 from textual.screen import Screen
 
 from millctl.api import ControllerState
+from millctl.safety.commands import CONTROLLER_ALLOWS, Operation
 from millctl.tui.commands import Commanding
 from millctl.tui.follow import Following
 
-S = ControllerState
-ENABLED_IN = {
-    "arm": frozenset({S.DISABLED}),
-    "disarm": frozenset({S.ARMED}),
-    "set": frozenset({S.ARMED, S.RUNNING}),
-    "stop": frozenset({S.ARMED, S.RUNNING, S.STOPPING}),
-    "reset": frozenset({S.TRIPPED}),
-    "recipe_run": frozenset({S.DISABLED, S.ARMED}),
+ENABLED_IN: dict[str, frozenset[ControllerState]] = {
+    **{
+        op.value: CONTROLLER_ALLOWS[op]
+        for op in (Operation.ARM, Operation.DISARM, Operation.SET, Operation.STOP, Operation.RESET)
+    },
+    "recipe_run": frozenset({ControllerState.DISABLED, ControllerState.ARMED}),
 }
-"""Controller states in which a footer command applies; elsewhere its key is greyed out (the palette still offers
+"""Controller states in which a footer command applies (the controller's own table,
+:data:`millctl.safety.commands.CONTROLLER_ALLOWS`); elsewhere its key is greyed out (the palette still offers
 it, and the service refuses it with its reason)."""
 RECIPE_ACTIONS = frozenset({"recipe_pause", "recipe_abort"})
 """Footer commands that apply only while a recipe is active."""

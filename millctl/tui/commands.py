@@ -171,9 +171,11 @@ class Commanding(MillView):
         question = f"The mill is {state}{' with a recipe running' if self.recipe_active else ''}. Quit? {after}"
         self.push_screen(ConfirmModal(question), self._quit_answered)
 
-    def _quit_answered(self, answer: bool | None) -> None:
+    async def _quit_answered(self, answer: bool | None) -> None:
+        # On the app's own task, not in a worker: a worker that calls exit() is cancelled by the shutdown it
+        # starts, and the cancellation raced the stream's socket read (asyncio InvalidStateError on quit).
         if answer:
-            self.run_worker(self._leave(), exit_on_error=False)
+            await self._leave()
 
     async def _leave(self) -> None:
         with contextlib.suppress(TimeoutError):

@@ -8,9 +8,11 @@ lapses after 30 s without a command), and released on quit.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncGenerator, Awaitable, Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import httpx
 from textual.notifications import SeverityLevel
@@ -29,6 +31,7 @@ from millctl.client import (
 from millctl.errors import MillctlError
 
 T = TypeVar("T")
+log = logging.getLogger(__name__)
 
 CLIENT_NAME = "tui"
 """Recorded by the service as the source ``api:tui@<host>``."""
@@ -36,6 +39,29 @@ LINK_ERRORS = (MillctlError, httpx.HTTPError, OSError)
 """What a lost or refused connection can raise; the TUI shows them and carries on."""
 STREAM_SILENCE_S = 5.0
 """With no status for this long the stream is taken for dead and reopened (the service sends one every 0.25 s)."""
+
+
+RACED_READ = "Exception in callback Future.set_result"
+"""How asyncio reports a socket read's wake-up that lost the race with its cancellation (see below)."""
+
+
+def quiet_raced_reads(loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+    """The TUI's asyncio exception handler: a socket read cancelled as its data arrived is not an error.
+
+    anyio (under httpx's Unix-socket transport) waits for a readable socket
+    with ``loop.add_reader(sock, future.set_result, None)``. When the read is
+    cancelled (quitting, or a reconnect) in the same loop iteration as the data
+    arrives, the queued wake-up then calls ``set_result`` on a cancelled future
+    and asyncio prints an ``InvalidStateError`` traceback on the operator's
+    terminal. Nothing was lost: the read had been given up. Logged at debug
+    level; every other error goes to asyncio's default handler.
+    """
+    if isinstance(context.get("exception"), asyncio.InvalidStateError) and str(
+        context.get("message", "")
+    ).startswith(RACED_READ):
+        log.debug("a cancelled socket read raced its data (harmless): %s", context.get("handle"))
+        return
+    loop.default_exception_handler(context)
 
 
 def describe(exc: BaseException) -> tuple[str, SeverityLevel]:
@@ -111,4 +137,6 @@ class ServiceLink:
             await self.client.aclose()
 
 
-__all__ = ["CLIENT_NAME", "LINK_ERRORS", "STREAM_SILENCE_S", "ServiceLink", "describe"]
+__all__ = [
+    "CLIENT_NAME", "LINK_ERRORS", "RACED_READ", "STREAM_SILENCE_S", "ServiceLink", "describe", "quiet_raced_reads",
+]

@@ -32,6 +32,21 @@ SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
 .buttons { height: 3; margin-top: 1; align: right middle; }
 .buttons Button { margin-left: 2; }
 .hint { color: $text-muted; margin-top: 1; }
+
+/* an 80 × 24 terminal: no trends, the panels share the height, physics gives its place to the links */
+Screen.-short .trend { display: none; }
+Screen.-short .panel-text { height: 1fr; }
+Screen.-short #row1 { height: 1fr; min-height: 12; }
+Screen.-short #row2 { height: 7; }
+Screen.-short #events { height: 3; min-height: 3; }
+Screen.-narrow #physics { display: none; }
+Screen.-narrow #links { width: 1fr; min-width: 0; }
+Screen.-narrow #left { min-width: 30; }
 """
 
-__all__ = ["CSS"]
+SHORT_BELOW_ROWS = 34
+"""Terminals with fewer rows get the compact layout (class ``-short``)."""
+NARROW_BELOW_COLUMNS = 100
+"""Terminals with fewer columns get the narrow layout (class ``-narrow``)."""
+
+__all__ = ["CSS", "NARROW_BELOW_COLUMNS", "SHORT_BELOW_ROWS"]

@@ -8,13 +8,16 @@ frozen data.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
+from collections.abc import Sequence
 from typing import Any
 
 from rich.text import Text
 from textual.app import App, ComposeResult
 from textual.containers import Horizontal, Vertical
+from textual.filter import LineFilter, Monochrome, NoColor
 from textual.notifications import SeverityLevel
 from textual.screen import Screen
 from textual.widgets import Footer, RichLog, Static
@@ -22,9 +25,10 @@ from textual.worker import Worker, WorkerState
 
 from millctl.api import ControllerState, ControlOut, EnvelopeOut, EventKind, EventOut, RecipeOut, StatusOut
 from millctl.tui.format import state_style
-from millctl.tui.link import ServiceLink
+from millctl.tui.legible import LegibleMonochrome
+from millctl.tui.link import ServiceLink, quiet_raced_reads
 from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
-from millctl.tui.styles import CSS
+from millctl.tui.styles import CSS, NARROW_BELOW_COLUMNS, SHORT_BELOW_ROWS
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +41,7 @@ EVENT_STYLE: dict[EventKind, str] = {
     EventKind.TRIP: "bold red", EventKind.REFUSAL: "yellow", EventKind.STATE: "cyan", EventKind.CONTROL: "magenta",
 }
 """How each kind of event is coloured in the log."""
+LEGIBLE = LegibleMonochrome()
 
 
 class MillView(App[None]):
@@ -44,6 +49,8 @@ class MillView(App[None]):
 
     CSS = CSS
     TITLE = "millctl"
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (NARROW_BELOW_COLUMNS, "-wide")]  # noqa: RUF012 - textual's
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (SHORT_BELOW_ROWS, "-tall")]  # noqa: RUF012
 
     def __init__(self, socket_path: str | None = None, *, config: str | None = None, live: bool = True,
                  sim: bool = False) -> None:
@@ -78,7 +85,8 @@ class MillView(App[None]):
         yield Footer(compact=True)
 
     def on_mount(self) -> None:
-        """Title the panels; until the follower connects, say so."""
+        """Title the panels; until the follower connects, say so; no traceback for a raced socket read."""
+        asyncio.get_running_loop().set_exception_handler(quiet_raced_reads)
         for panel_id, title in (("state", "controller"), ("physics", "physics"), ("links", "node links"),
                                 ("events", "events")):
             self.main_screen.query_one(f"#{panel_id}").border_title = title
@@ -95,6 +103,13 @@ class MillView(App[None]):
             error = event.worker.error
             log.error("worker %s failed: %r", event.worker.name, error, exc_info=error)
             self.notify(f"internal error in {event.worker.name}: {error!r}", severity="error", markup=False)
+
+    def get_line_filters(self) -> Sequence[LineFilter]:
+        """Under NO_COLOR, greyscale that keeps every text readable (:mod:`millctl.tui.legible`)."""
+        filters = super().get_line_filters()
+        if not self.no_color:
+            return filters
+        return [LEGIBLE if isinstance(f, Monochrome | NoColor) else f for f in filters]
 
     @property
     def main_screen(self) -> Screen[Any]:
@@ -193,7 +208,7 @@ class MillView(App[None]):
         holder = "you" if self.link.holds_control else ((self.control.holder if self.control else None) or "nobody")
         where = "online" if self.online else "OFFLINE"
         text = Text.assemble(("millctl ", "bold"), (f" {state or '—'} ", state_style(state)), ("  control ", "dim"),
-                             holder, ("  service ", "dim"), (where, "green" if self.online else "bold red"),
+                             holder, ("  service ", "dim"), (where, "green" if self.online else "bold white on red"),
                              (f" {self.link.socket_path}", "dim"), ("  (simulated mill)" if self.sim else "", "cyan"))
         self.main_screen.query_one("#topbar", Static).update(text, layout=False)
 

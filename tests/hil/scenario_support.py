@@ -292,7 +292,10 @@ class Probe:
 
     def _capture(self) -> None:
         while not self._halt.is_set():
-            frame = self.bus.recv(0.05)
+            try:
+                frame = self.bus.recv(0.05)
+            except (can.CanError, OSError):  # a datagram that is no frame (the adversary's): not ours to judge
+                continue
             if frame is None:
                 continue
             try:

@@ -98,3 +98,49 @@ def test_eq8a_is_monotone_in_phase_when_stiff(w_v, s):
         assert omega_r_max_eq8a(p, w_v, s) >= omega_r_max_eq8a(p, w_v, -1.0) - 1e-12
     else:
         assert omega_r_max_eq8a(p, w_v, s) >= omega_r_max_eq8a(p, w_v, 1.0) - 1e-12
+
+
+def _agreement_points(envelope, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Random speed pairs plus the edges: the limit itself and its neighbouring floats, the drive limits,
+    zero, −0, negatives, nan and inf."""
+    rng = np.random.default_rng(seed)
+    w_v = rng.uniform(-10.0, 1.2 * envelope.vibration_max_rpm, count)
+    w_r = rng.uniform(-10.0, 1.2 * envelope.rotary_max_rpm, count)
+    edge_v = rng.uniform(0.0, envelope.vibration_max_rpm, count // 10)
+    limit = envelope.omega_r_limit_rpm(edge_v)
+    edges_r = [limit, np.nextafter(limit, np.inf), np.nextafter(limit, -np.inf), limit + 1e-9]
+    w_r = np.concatenate([w_r, *edges_r])
+    w_v = np.concatenate([w_v, *([edge_v] * len(edges_r))])
+    v_max = envelope.vibration_max_rpm
+    special_v = [0.0, -0.0, v_max, np.nextafter(v_max, np.inf), np.nextafter(v_max, -np.inf), np.nan, np.inf, -1.0]
+    special_r = [0.0, -0.0, envelope.rotary_max_rpm, np.nan, np.inf, -np.inf, -1e-300, 1e-300]
+    grid_r, grid_v = np.meshgrid(special_r, special_v)
+    return np.concatenate([w_r, grid_r.ravel()]), np.concatenate([w_v, grid_v.ravel()])
+
+
+@pytest.mark.parametrize("cam", ["single", "double"])
+@pytest.mark.parametrize("law", list(LimitLaw))
+def test_scalar_interlock_agrees_with_vectorised_on_1e5_points(config, law, cam):
+    """The interlock's plain-math scalar path gives bitwise the vectorised verdicts (issue 17, item 3);
+    its speed (≤ 1 µs a check) is measured by ``python -m bench``, not asserted here."""
+    import dataclasses
+
+    from millctl.config.models import CamShape
+    from millctl.physics.limits import omega_r_max_scalar
+    from millctl.safety import Envelope
+
+    base = Envelope.from_config(config, law=law)
+    envelope = dataclasses.replace(base, params=dataclasses.replace(base.params, cam=CamShape(cam)))
+    w_r, w_v = _agreement_points(envelope, 72_000, seed=list(LimitLaw).index(law))
+    assert w_r.size >= 100_000
+    vector = envelope.contains(w_r, w_v)
+    for tolerance in (0.0, envelope.measurement_tolerance_rpm):
+        vector_tol = envelope.contains(w_r, w_v, tolerance)
+        scalar = [envelope.allows(a, b, tolerance) for a, b in zip(w_r.tolist(), w_v.tolist(), strict=True)]
+        assert np.array_equal(vector_tol, scalar)
+    sample = slice(0, None, 50)
+    checked = [envelope.check(a, b).ok for a, b in zip(w_r[sample].tolist(), w_v[sample].tolist(), strict=True)]
+    assert np.array_equal(vector[sample], checked)
+    finite_v = w_v[np.isfinite(w_v)]
+    limits = [omega_r_max_scalar(law, envelope.params, x) for x in rpm_to_rad_s(finite_v).tolist()]
+    assert np.array_equal(omega_r_max(law, envelope.params, rpm_to_rad_s(finite_v)), limits)

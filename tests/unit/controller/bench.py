@@ -18,6 +18,7 @@ from millctl.protocol import (
     MillMessage,
     NodeState,
     NodeStatus,
+    Setpoints,
     default_codec,
 )
 
@@ -54,13 +55,27 @@ class ScriptedNode:
         for frame in iter(lambda: self.bus.recv(timeout=0.0), None):
             self.sent.append((self.clock.now(), self.codec.decode(frame)))
 
-    def run(self, seconds: float, dt: float = 0.01, **alive: object) -> None:
-        """Tick the controller for ``seconds``; with ``alive`` kwargs, the node talks every 50 ms."""
+    def followed(self) -> dict[str, object]:
+        """A node that did what it was told: the last setpoint as its speeds, RUNNING while it is not zero."""
+        sent = [d.message for _, d in self.of(Setpoints)]
+        last = sent[-1] if sent else Setpoints(0.0, 0.0, 25.0, False)
+        assert isinstance(last, Setpoints)
+        moving = last.rotary_rpm > 0.0 or last.vibration_rpm > 0.0
+        return {"state": NodeState.RUNNING if moving else NodeState.ARMED, "rotary_rpm": last.rotary_rpm,
+                "vibration_rpm": last.vibration_rpm}
+
+    def run(self, seconds: float, dt: float = 0.01, *, follow: bool = False, **alive: object) -> None:
+        """Tick the controller for ``seconds``; with ``alive`` kwargs, the node talks every 50 ms.
+
+        With ``follow``, the node reports the last setpoint as its speeds (and RUNNING while it is not zero).
+        """
         steps = round(seconds / dt)
         for i in itertools.count():
             if i >= steps:
                 break
-            if alive and i % 5 == 0:
+            if follow and i % 5 == 0:
+                self.alive(**self.followed())  # type: ignore[arg-type]
+            elif alive and i % 5 == 0:
                 self.alive(**alive)  # type: ignore[arg-type]
             self.controller.tick()
             self.collect()

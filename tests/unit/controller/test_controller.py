@@ -64,7 +64,8 @@ def test_over_limit_setpoint_refused_and_nothing_sent(bench):
 def test_setpoints_follow_the_planned_ramp_at_10_hz(bench):
     armed(bench)
     move = bench.controller.set_speeds(180.0, 800.0)
-    bench.run(move.duration_s + 0.5, state=NodeState.ARMED)
+    bench.run(move.duration_s + 0.5, follow=True)
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
     sent = [d.message for _, d in bench.of(Setpoints)]
     assert sent[-1].rotary_rpm == 180.0 and sent[-1].vibration_rpm == 800.0
     for m in sent:  # every sent pair is inside
@@ -82,6 +83,8 @@ def test_commands_refused_in_the_wrong_state(bench):
 
 def test_measured_outside_trips_after_debounce(bench, config):
     armed(bench)
+    move = bench.controller.set_speeds(180.0, 800.0)
+    bench.run(move.duration_s + 0.5, follow=True)
     n = config.interlock.debounce_samples
     for i in range(n):
         assert bench.controller.state is not S.TRIPPED, i

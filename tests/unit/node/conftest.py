@@ -41,7 +41,7 @@ class Bench:
         *,
         fault_injection: bool = False,
         seed: int = 0,
-        physics_worker: PhysicsWorker = "thread",
+        physics_worker: PhysicsWorker = "inline",
     ) -> None:
         self.config = config
         self.channel = f"node-test-{uuid.uuid4().hex}"

@@ -70,3 +70,17 @@ def test_no_slip_flag_in_json_and_text(capsys):
     assert ns["onset_theta_deg"] == pytest.approx(-52.37, abs=0.01) and ns["onset_time_s"] < ns["arc_end_s"]
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected")
     assert code == 0 and "no-slip violated" in out.out and "θ = -52.37°" in out.out
+
+
+@pytest.mark.parametrize(("spin", "detached"), [("locked", True), ("free", False)])
+def test_slip_ride_option(capsys, spin, detached):
+    """--slip: rod 0 with Coulomb slip; at α0 = 213.75° the locked rod still leaves, the rolling one does not."""
+    args = ("--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--alpha0-deg", "213.75")
+    code, out = _run(capsys, *args, "--slip", spin, "--json")
+    assert code == 0
+    sr = json.loads(out.out)["result"]["slip_ride"]
+    assert sr["spin"] == spin and sr["detached"] is detached and sr["sliding_s"] > 0.0
+    if detached:
+        assert 0.0 < sr["theta_d_deg"] < 10.0 and sr["flight_time_s"] > 0.0 and sr["energy_j"] > 0.0
+    code, out = _run(capsys, *args, "--slip", spin)
+    assert code == 0 and f"slip ride (spin {spin}" in out.out

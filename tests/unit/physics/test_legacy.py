@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from millctl.errors import PhysicsInputError
+from millctl.physics.legacy import arc_wall_sink_m
 from millctl.physics.methods import METHODS, first_impact
 from millctl.physics.model import Scene
 
@@ -47,7 +48,7 @@ def test_linear_interpolation_is_second_order(scenes):
 
 
 def test_arcs_wall_approaches_the_circle(scenes):
-    """q arcs: the rod can sink between two points by at most the sagitta (π r_v/q)²/(2 r_r)."""
+    """q arcs: the rod can sink between two points by at most arc_wall_sink_m (≈ π² r_v r0/(2 r_r q²))."""
     scene = scenes[0]
     ref = first_impact(scene)
     assert ref is not None
@@ -55,7 +56,7 @@ def test_arcs_wall_approaches_the_circle(scenes):
         event = first_impact(scene, "legacy-arcs", dt=1e-5, q=q)
         assert event is not None and event.partner == -1
         m = scene.model
-        sag_m = (math.pi * m.vial_radius_m / q) ** 2 / (2 * m.rod_radius_m)
+        sag_m = arc_wall_sink_m(m, q)
         assert abs(event.time_s - ref.time_s) <= 1e-5 + sag_m / max(ref.normal_velocity_m_s, 1e-3)
 
 

@@ -116,3 +116,20 @@ def test_critical_point_at_t0_does_not_stall_the_root_finder(set_a_paper):
     """Regression: paper, 30/1000 rpm put a root of N' at t = 0, where a purely relative tolerance never converges."""
     s = revolution_summary(set_a_paper, rpm_to_rad_s(30.0), rpm_to_rad_s(1000.0))
     assert isinstance(s, RevolutionSummary)
+
+
+@pytest.mark.parametrize("variant", ["corrected", "paper"])
+def test_compiled_summary_is_the_reference_summary(set_a, variant):
+    """The node's compiled level-(b) summary (issue 17) gives the numpy engine's numbers, field by field."""
+    dc = dataclasses
+    model = dc.replace(set_a, variant=ModelVariant(variant))
+    for w_r in (5.0, 30.0, 80.0, 150.0, 199.0, 250.0, 400.0):
+        for w_v in (0.0, 300.0, 800.0, 1200.0):
+            args = (model, rpm_to_rad_s(w_r), rpm_to_rad_s(w_v))
+            compiled = dc.astuple(revolution_summary(*args))
+            reference = dc.astuple(revolution_summary(*args, engine="reference"))
+            for name, a, b in zip([f.name for f in dc.fields(RevolutionSummary)], compiled, reference, strict=True):
+                if isinstance(a, float) and math.isnan(a):
+                    assert math.isnan(b), (w_r, w_v, name)
+                else:
+                    assert a == pytest.approx(b, rel=1e-9, abs=1e-30), (w_r, w_v, name)

@@ -81,3 +81,64 @@ async def test_commands_without_a_node_are_503(tmp_path: Path) -> None:
             assert (await http.post("/v1/estop")).status_code == 200  # E-stop is always accepted
     finally:
         runtime.shutdown("test over", bound_s=0.5)
+
+
+ANSWERS = {
+    "/v1/setpoints": {"accepted": True, "message": "setpoints", "state": "RUNNING", "duration_s": 4.5},
+    "/v1/control/take": {"lease_id": "L1", "holder": "api:t@h", "expires_in_s": 30.0, "ttl_s": 30.0},
+    "/v1/control/release": {"held": False, "holder": None, "expires_in_s": None, "expired": False},
+}
+
+
+def _mock(seen: list[httpx.Request]) -> httpx.MockTransport:
+    def answer(request: httpx.Request) -> httpx.Response:
+        seen.append(request)
+        return httpx.Response(200, json=ANSWERS[request.url.path])
+
+    return httpx.MockTransport(answer)
+
+
+async def test_both_clients_are_one_table_over_two_transports(tmp_path: Path) -> None:
+    from millctl.api import CommandOut, ControllerState
+    from millctl.client import AsyncClient, Operation, Operations
+
+    table = {name: op for name, op in vars(Operations).items() if isinstance(op, Operation)}
+    assert {"status", "set_speeds", "recipe_run", "take_control", "estop"} <= set(table)
+    assert all(getattr(Client, n) is op and getattr(AsyncClient, n) is op for n, op in table.items())
+
+    seen_sync: list[httpx.Request] = []
+    seen_async: list[httpx.Request] = []
+    with Client(tmp_path / "s.sock") as sync:
+        sync._http = httpx.Client(base_url=sync.base_url, transport=_mock(seen_sync))
+        sync.take_control()
+        assert sync.lease_id == "L1"
+        result = sync.set_speeds(180.0, 800.0, linear=True)
+        sync.release_control()
+        assert sync.lease_id is None
+    async with AsyncClient(tmp_path / "s.sock") as asynchronous:
+        asynchronous._http = httpx.AsyncClient(base_url=asynchronous.base_url, transport=_mock(seen_async))
+        await asynchronous.take_control()
+        awaited = await asynchronous.set_speeds(180.0, 800.0, linear=True)
+    assert isinstance(result, CommandOut) and result == awaited and result.state is ControllerState.RUNNING
+    assert [(r.method, r.url.path, r.content) for r in seen_sync[:2]] == \
+        [(r.method, r.url.path, r.content) for r in seen_async]
+    assert seen_sync[1].headers["X-Millctl-Lease"] == "L1"
+
+
+async def test_the_stream_resumes_after_the_last_event_id(tmp_path: Path) -> None:
+    from millctl.api import EventOut
+    from millctl.client import AsyncClient
+
+    runtime = ServiceRuntime(load_config(write_config(tmp_path)), embed_node=False)
+    try:
+        for i in range(5):
+            runtime.journal.add("service", "test", f"event {i}")
+        async with AsyncClient(tmp_path / "s.sock") as client:
+            client._http = httpx.AsyncClient(base_url=client.base_url,
+                                             transport=httpx.ASGITransport(app=create_app(runtime)))
+            client.last_event_id = 2  # seen up to 2, then the connection dropped
+            got = [item async for item in client.stream(count=3)]
+        assert [e.seq for e in got if isinstance(e, EventOut)] == [3, 4, 5]
+        assert client.last_event_id == 5
+    finally:
+        runtime.close()

@@ -1,4 +1,4 @@
-"""Snapshots of the main screen at 120 × 40 with frozen content (no service, no clock, no noise)."""
+"""Snapshots of the main screen (120 × 40, and 80 × 24) with frozen content; readability under NO_COLOR."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+from textual.geometry import Region
 from textual.pilot import Pilot
 
 from millctl.tui import MillApp
+from millctl.tui.legible import MIN_CONTRAST, contrast
 from tests.unit.tui import frozen
 
 SIZE = (120, 40)
@@ -50,3 +52,50 @@ def test_main_screen_tripped_shows_the_banner(snap_compare: Any, utc: None) -> N
     app = MillApp(frozen.SOCKET, live=False)
     cause = "node fault STALL (fault bits <FaultFlag.STALL: 32>)"
     assert snap_compare(app, terminal_size=SIZE, run_before=feeder(app, state="TRIPPED", trip_cause=cause))
+
+
+def test_main_screen_at_80_by_24(snap_compare: Any, utc: None) -> None:
+    """The smallest usual terminal: the state bar stays on top, trends give way, links replace physics."""
+    app = MillApp(frozen.SOCKET, live=False)
+    assert snap_compare(app, terminal_size=(80, 24), run_before=feeder(app))
+
+
+async def test_at_80_by_24_every_panel_is_on_screen() -> None:
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await feeder(app)(pilot)
+        for selector in ("#topbar", "#rotary", "#vibration", "#furnace", "#envelope", "#state", "#links", "#events"):
+            region = app.query_one(selector).region
+            assert region.y >= 0 and region.bottom <= 23 and region.height > 0, (selector, region)
+        assert app.query_one("#topbar").region.y == 0
+
+
+def _low_contrast(app: MillApp) -> list[tuple[float, str, str]]:
+    """Every text segment on screen whose foreground is below 4.5:1 against its background (box lines aside)."""
+    found = []
+    for widget in app.screen.walk_children():
+        if not widget.display or not widget.region:
+            continue
+        for strip in widget.render_lines(Region(0, 0, widget.region.width, widget.region.height)):
+            for segment in strip:
+                style, text = segment.style, segment.text.strip()
+                if not text or style is None or style.color is None or style.bgcolor is None:
+                    continue
+                if all(0x2500 <= ord(ch) < 0x2600 for ch in text):
+                    continue
+                ratio = contrast(tuple(style.color.get_truecolor()), tuple(style.bgcolor.get_truecolor()))
+                if ratio < MIN_CONTRAST or style.dim:
+                    found.append((round(ratio, 2), text[:20], type(widget).__name__))
+    return found
+
+
+@pytest.mark.parametrize("size", [(120, 40), (80, 24)])
+async def test_no_color_keeps_every_text_readable(monkeypatch: pytest.MonkeyPatch, size: tuple[int, int]) -> None:
+    monkeypatch.setenv("NO_COLOR", "1")
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=size) as pilot:
+        await feeder(app)(pilot)
+        app.show_offline("the service went away")
+        await pilot.pause()
+        assert app.no_color
+        assert _low_contrast(app) == []

@@ -1,0 +1,216 @@
+"""``millctl study FILE.toml``: sweep or optimise the operating point and the design (docs/studies.md)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+from millctl.cli.args import positive_int
+from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.config import load_config
+from millctl.errors import ExitCode, InvalidInputError
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``study``."""
+    parser = subparsers.add_parser(
+        "study",
+        help="design study: sweep or optimise the operating point and the mill's design",
+        description="Run a study file: parameters on a grid, a list or an optimiser; metrics, constraints, "
+        "objective. Resumes from its results file.",
+    )
+    parser.add_argument("file", help="the study (TOML)")
+    parser.add_argument("--out", type=Path, help="results file (.parquet, or .csv; default ./STUDY.parquet)")
+    parser.add_argument("--csv", action="store_true", help="write CSV instead of Parquet")
+    parser.add_argument("--fresh", action="store_true", help="discard an existing results file instead of resuming")
+    parser.add_argument("--workers", type=positive_int, help="local worker processes (default: every local core)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask distributed scheduler")
+    parser.add_argument("--pareto", metavar="A,B", help="the Pareto front of two metrics (-NAME minimises)")
+    parser.add_argument("--figures", metavar="DIR", type=Path, help="write heat map, Pareto and sensitivity PNGs")
+    parser.add_argument("--heatmap", metavar="METRIC", help="metric of the heat map (default: the objective's)")
+    parser.add_argument("--top", type=positive_int, default=10, help="rows in the table (default 10)")
+    parser.add_argument("--recipe", metavar="OUT.toml", type=Path, help="write a pre-flighted recipe at the best point")
+    target = parser.add_mutually_exclusive_group()
+    target.add_argument("--dose-kj-g", type=float, help="the recipe mills until this dose (kJ per g of powder)")
+    target.add_argument("--hold-h", type=float, default=None, help="the recipe mills this long (h; default 1)")
+    parser.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
+    parser.set_defaults(handler=_run)
+
+
+def _results_path(args: argparse.Namespace) -> Path:
+    if args.out is not None:
+        return Path(args.out)
+    return Path(Path(args.file).stem + (".csv" if args.csv else ".parquet"))
+
+
+def _run(args: argparse.Namespace) -> int:
+    from millctl.studies import ResultsStore, StudyRunner, check_parameters, load_study, make_backend
+
+    study = load_study(args.file)
+    base_path = (Path(args.file).parent / study.study.config) if study.study.config else args.config
+    loaded = load_config(base_path)
+    check_parameters(study, loaded.config, args.file)
+    runner = StudyRunner(study, loaded.config, args.file)
+    store = ResultsStore(_results_path(args), runner.fingerprint)
+    if args.fresh:
+        store.reset()
+    reused = store.resume()
+    runner.store = store
+    pareto = _pareto_metrics(args.pareto, runner.metrics)
+    err = stderr_console()
+    backend = make_backend(args.workers, args.scheduler)
+    started = time.perf_counter()
+    try:
+        result = _with_progress(runner, backend, err, study.study.name)
+    finally:
+        backend.close()
+    elapsed = time.perf_counter() - started
+    summary = _summary(args, study, loaded.source, store, result, backend, elapsed, reused, pareto)
+    summary["fingerprint"] = runner.fingerprint
+    if args.figures is not None:
+        from millctl.studies.figures import write_figures
+
+        summary["figures"] = write_figures(
+            args.figures, study, runner, result, args.heatmap, pareto, summary.get("pareto_front")
+        )
+    if args.recipe is not None:
+        summary["recipe"] = _write_recipe(args, study, runner, result)
+    if args.json:
+        print_json(args, summary)
+    else:
+        _print_table(result, runner.metrics, args.top, summary)
+    return int(ExitCode.OK)
+
+
+def _pareto_metrics(text: str | None, metrics: tuple[str, ...]) -> list[str] | None:
+    if not text:
+        return None
+    names = [n.strip() for n in text.split(",")]
+    bad = [n for n in names if n.lstrip("-") not in metrics]
+    if len(names) != 2 or bad:
+        raise InvalidInputError(
+            f"--pareto {text!r}: give two metrics of the study as A,B (-NAME minimises); study metrics: "
+            f"{', '.join(metrics)}"
+        )
+    return names
+
+
+def _with_progress(runner: Any, backend: Any, console: Any, name: str) -> Any:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=console, transient=True) as progress:
+        task = progress.add_task(f"{name} ({backend.name}, {backend.workers} workers)", total=None)
+
+        def update(done: int, total: int) -> None:
+            progress.update(task, completed=done, total=total)
+
+        return runner.run(backend, update)
+
+
+def _clean(row: dict[str, Any] | None) -> dict[str, Any] | None:
+    if row is None:
+        return None
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items() if k != "key"}
+
+
+def _summary(
+    args: argparse.Namespace,
+    study: Any,
+    config_source: str,
+    store: Any,
+    result: Any,
+    backend: Any,
+    elapsed: float,
+    reused: int,
+    pareto: list[str] | None,
+) -> dict[str, Any]:
+    from millctl.studies import pareto_front
+
+    events = sum(int(r["events"]) for r in result.rows)
+    data: dict[str, Any] = {
+        "study": study.study.name,
+        "source": args.file,
+        "config": config_source,
+        "results": str(store.path),
+        "points": len(result.rows),
+        "computed": result.computed,
+        "reused": reused,
+        "feasible": sum(1 for r in result.rows if r["feasible"]),
+        "backend": backend.name,
+        "workers": backend.workers,
+        "elapsed_s": elapsed,
+        "points_per_s": result.computed / elapsed if elapsed > 0 else None,
+        "events": events,
+        "objective": result.objective,
+        "metrics": list(result.metrics),
+        "best": _clean(result.best),
+    }
+    if pareto is not None:
+        data["pareto"] = pareto
+        data["pareto_front"] = [_clean(r) for r in pareto_front(result.rows, pareto)]
+    return data
+
+
+def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[str, Any]) -> None:
+    from rich.table import Table
+
+    out = stdout_console()
+    params = [k for k in (result.best or result.rows[0]) if k in _param_columns(result.rows)]
+    ranked = sorted((r for r in result.rows if math.isfinite(r["objective"])), key=lambda r: -r["objective"])
+    table = Table(title=f"{summary['study']}: best {min(top, len(ranked))} of {summary['feasible']} feasible points")
+    for name in ("#", *params, "objective", *metrics):
+        table.add_column(name, justify="right")
+    for row in ranked[:top]:
+        cells = [str(row["point"]), *(_fmt(row[p]) for p in params), _fmt(row["objective"])]
+        table.add_row(*cells, *(_fmt(row[m]) for m in metrics))
+    out.print(table)
+    if "pareto_front" in summary:
+        front = Table(title=f"Pareto front of {', '.join(summary['pareto'])}")
+        names = [n.lstrip("-") for n in summary["pareto"]]
+        for name in ("#", *params, *names):
+            front.add_column(name, justify="right")
+        for row in summary["pareto_front"]:
+            front.add_row(str(row["point"]), *(_fmt(row[p]) for p in params), *(_fmt(row[n]) for n in names))
+        out.print(front)
+    rate = summary["points_per_s"]
+    stderr_console().print(
+        f"{summary['points']} points ({summary['computed']} computed, {summary['reused']} from {summary['results']}), "
+        f"{summary['feasible']} feasible; {summary['backend']} × {summary['workers']}; "
+        f"{summary['elapsed_s']:.1f} s" + (f", {rate:.2f} points/s" if rate else ""),
+        markup=False,
+    )
+
+
+_NOT_PARAMS = frozenset({"point", "key", "events", "feasible", "violations", "objective"})
+
+
+def _param_columns(rows: list[dict[str, Any]]) -> set[str]:
+    from millctl.studies.metrics import METRICS
+
+    return {k for k in rows[0] if k not in _NOT_PARAMS and k not in METRICS} if rows else set()
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return "—"
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _write_recipe(args: argparse.Namespace, study: Any, runner: Any, result: Any) -> dict[str, Any]:
+    from millctl.studies.recipe import write_recipe
+
+    if result.best is None:
+        raise InvalidInputError(f"{args.file}: no feasible point, so no recipe (see the violations in the results)")
+    written: dict[str, Any] = write_recipe(
+        args.recipe, study, runner, result.best, dose_kj_g=args.dose_kj_g, hold_h=args.hold_h
+    )
+    return written
+
+
+__all__ = ["register"]

@@ -1,0 +1,236 @@
+"""Run a study: expand its points (grid, list, or optimiser), evaluate the unfinished ones, pick the best.
+
+Grid and list studies take the Cartesian product of every parameter's values,
+in the order the file declares them. Optimiser studies run scipy's
+``differential_evolution`` with the study's seed and deferred updating, its
+population evaluated by the same backend as a grid; every evaluated point is a
+row, so an interrupted optimisation replays from the results file without
+recomputing (the seeded optimiser asks for the same points again).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from millctl.config.models import CamShape, MillConfig
+from millctl.studies.backends import Backend, SerialBackend, batched
+from millctl.studies.engine import ConstraintSpec, ParamValue, PointTask, point_key
+from millctl.studies.metrics import DEFAULT_METRICS, METRICS, PointSettings
+from millctl.studies.schema import INTEGER, Optimiser, Parameter, Study, StudyError
+from millctl.studies.store import ResultsStore, fingerprint_of
+
+Progress = Callable[[int, int], None]
+"""Called with (points done, points in total) after every batch."""
+
+PENALTY = 1e30
+"""What the optimiser minimises at an infeasible point (scipy needs a finite number)."""
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """Every row of a study, and the best feasible one under its objective."""
+
+    rows: list[dict[str, Any]]
+    best: dict[str, Any] | None
+    computed: int
+    """Points evaluated in this run (the rest came from the results file)."""
+    reused: int
+    metrics: tuple[str, ...]
+    objective: dict[str, float]
+
+
+def metric_names(study: Study, source: str) -> tuple[str, ...]:
+    """The study's metrics (default: levels a and b) plus any its objective needs; unknown names are errors."""
+    names = list(study.metrics.names or DEFAULT_METRICS)
+    names += [n for n in study.objective.terms if n not in names]
+    unknown = [n for n in names if n not in METRICS]
+    if unknown:
+        known = ", ".join(sorted(METRICS))
+        raise StudyError(source, [f"{source}: metrics {', '.join(unknown)} unknown (known: {known})"])
+    return tuple(names)
+
+
+def objective_value(row: dict[str, Any], terms: dict[str, float]) -> float:
+    """Σ weight·metric at a feasible point; nan where infeasible or a term is not finite."""
+    if not row.get("feasible"):
+        return math.nan
+    total = 0.0
+    for name, weight in terms.items():
+        value = float(row[name])
+        if not math.isfinite(value):
+            return math.nan
+        total += weight * value
+    return total
+
+
+def grid_points(study: Study) -> list[dict[str, ParamValue]]:
+    """Every combination of the parameters' grid or list values, in declared order (last varies fastest)."""
+    axes: list[list[ParamValue]] = []
+    for name, sweep in study.parameters.items():
+        values: list[ParamValue] = list(sweep.grid.values()) if sweep.grid is not None else list(sweep.values or [])
+        axes.append([round(float(v)) if name in INTEGER else v for v in values])
+    names = [p.value for p in study.parameters]
+    return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*axes)]
+
+
+class StudyRunner:
+    """One study against one base configuration, a backend and a results store."""
+
+    def __init__(
+        self,
+        study: Study,
+        base: MillConfig,
+        source: str,
+        store: ResultsStore | None = None,
+        batch_size: int | None = None,
+    ) -> None:
+        self.study = study
+        self.base = base
+        self.metrics = metric_names(study, source)
+        self.terms = study.objective.terms
+        c = study.constraints
+        self._constraints = ConstraintSpec(str(c.law), c.drives, c.max_vibration_rpm, c.max_spring_force_n)
+        self._settings = PointSettings(cam_phases=study.metrics.cam_phases, revolutions=study.metrics.revolutions)
+        self._base_data = base.model_dump(mode="json")
+        fixed = {
+            k: v for k, v in (("rotary_rpm", study.study.rotary_rpm), ("vibration_rpm", study.study.vibration_rpm))
+        }
+        self._fixed = {k: float(v) for k, v in fixed.items() if v is not None}
+        self.fingerprint = fingerprint_of(study.model_dump(mode="json"), self._base_data)
+        self.store = store if store is not None else ResultsStore(None, self.fingerprint)
+        self._batch_size = batch_size
+        self._index: dict[str, int] = {}
+        self.computed = 0
+
+    def task(self, params: dict[str, ParamValue]) -> PointTask:
+        """The task of one point (its number is the order in which the study first asked for it)."""
+        key = point_key(params)
+        index = self._index.setdefault(key, len(self._index))
+        variant = None if self.study.study.variant is None else self.study.study.variant.value
+        return PointTask(
+            index, params, self._base_data, self.metrics, self._settings, self._constraints,
+            self.study.study.seed, variant, self._fixed,
+        )  # fmt: skip
+
+    def evaluate(
+        self, points: Sequence[dict[str, ParamValue]], backend: Backend, progress: Progress | None = None
+    ) -> list[dict[str, Any]]:
+        """Rows of the points, computing only those not yet in the store; in the order given."""
+        tasks = [self.task(p) for p in points]
+        pending = [t for t in tasks if point_key(t.params) not in self.store.rows]
+        size = self._batch_size or max(1, min(64, math.ceil(len(pending) / (8 * backend.workers))))
+        done = len(tasks) - len(pending)
+        if progress is not None:
+            progress(done, len(tasks))
+        for rows in backend.map(batched(pending, size)):
+            self.store.add(rows)
+            self.computed += len(rows)
+            done += len(rows)
+            if progress is not None:
+                progress(done, len(tasks))
+        return [self.store.rows[point_key(t.params)] for t in tasks]
+
+    def run(self, backend: Backend, progress: Progress | None = None) -> StudyResult:
+        """Run the whole study (grid or optimiser) and pick the best feasible point."""
+        reused = len(self.store.rows)
+        if self.study.is_optimisation:
+            self._optimise(backend, progress)
+            rows = self.store.ordered()
+        else:
+            rows = self.evaluate(grid_points(self.study), backend, progress)
+        for row in rows:
+            row["objective"] = objective_value(row, self.terms)
+        scored = [r for r in rows if math.isfinite(r["objective"])]
+        best = max(scored, key=lambda r: (r["objective"], -int(r["point"]))) if scored else None
+        return StudyResult(rows, best, self.computed, reused, self.metrics, self.terms)
+
+    def _params_of(self, x: Iterable[float]) -> dict[str, ParamValue]:
+        out: dict[str, ParamValue] = {}
+        for name, value in zip(self.study.parameters, x, strict=True):
+            out[name.value] = round(float(value)) if name in INTEGER else float(value)
+        return out
+
+    def _optimise(self, backend: Backend, progress: Progress | None) -> None:
+        from scipy.optimize import differential_evolution
+
+        settings = self.study.optimiser or Optimiser()
+        bounds = [s.bounds for s in self.study.parameters.values()]
+
+        def energy(row: dict[str, Any]) -> float:
+            value = objective_value(row, self.terms)
+            return -value if math.isfinite(value) else PENALTY
+
+        def one(x: Any) -> float:
+            return energy(self.evaluate([self._params_of(np.atleast_1d(x))], SerialBackend())[0])
+
+        def mapper(_func: Any, population: Iterable[Any]) -> list[float]:
+            points = [self._params_of(np.atleast_1d(x)) for x in population]
+            return [energy(r) for r in self.evaluate(points, backend, progress)]
+
+        differential_evolution(
+            one,
+            bounds,
+            seed=self.study.study.seed,
+            maxiter=settings.max_iterations,
+            popsize=settings.population,
+            tol=settings.tolerance,
+            updating="deferred",
+            workers=mapper,
+            polish=False,
+            init="latinhypercube",
+        )
+
+
+def pareto_front(rows: Sequence[dict[str, Any]], metrics: Sequence[str]) -> list[dict[str, Any]]:
+    """Feasible rows no other feasible row beats in every metric (``-name`` minimises), by first metric."""
+    signs = [-1.0 if m.startswith("-") else 1.0 for m in metrics]
+    names = [m.lstrip("-") for m in metrics]
+    candidates = [r for r in rows if r.get("feasible") and all(math.isfinite(float(r[n])) for n in names)]
+    values = np.array([[s * float(r[n]) for s, n in zip(signs, names, strict=True)] for r in candidates])
+    front = []
+    for i, row in enumerate(candidates):
+        others = np.delete(values, i, axis=0)
+        dominated = bool(np.any(np.all(others >= values[i], axis=1) & np.any(others > values[i], axis=1)))
+        if not dominated:
+            front.append(row)
+    return sorted(front, key=lambda r: float(r[names[0]]))
+
+
+def check_parameters(study: Study, base: MillConfig, source: str) -> None:
+    """Speeds must be varied or fixed in [study]; materials and cam shapes must be known names."""
+    problems = []
+    for speed in (Parameter.ROTARY_RPM, Parameter.VIBRATION_RPM):
+        fixed = getattr(study.study, speed.value)
+        if speed not in study.parameters and fixed is None:
+            problems.append(f"{source}: {speed.value}: vary it under [parameters] or fix it in [study]")
+    known = {
+        Parameter.ROD_MATERIAL: sorted(base.materials),
+        Parameter.VIAL_MATERIAL: sorted(base.materials),
+        Parameter.CAM_SHAPE: [c.value for c in CamShape],
+    }
+    for name, names in known.items():
+        sweep = study.parameters.get(name)
+        for value in (sweep.values or []) if sweep is not None else []:
+            if value not in names:
+                problems.append(
+                    f"{source}: parameters.{name.value}.values: {value!r} unknown (known: {', '.join(names)})"
+                )
+    if problems:
+        raise StudyError(source, problems)
+
+
+__all__ = [
+    "PENALTY",
+    "StudyResult",
+    "StudyRunner",
+    "check_parameters",
+    "grid_points",
+    "objective_value",
+    "pareto_front",
+]

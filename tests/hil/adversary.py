@@ -1,0 +1,232 @@
+"""The raw-CAN adversary of the hil tier: crafted frames on the bus under test (issue 15).
+
+A fourth bus node, in the test process, that plays what a faulty bus or an
+attacker puts on the wire: frames with a bad CRC, forged frames with a good
+CRC, counter jumps, replays of recorded frames, a second sender answering a
+genuine one, malformed frames and datagrams, and floods. It opens its bus
+through the project's factory (so on udp_multicast it never hears itself);
+on udp_multicast it can also send datagrams that are not frames at all.
+
+Its send methods return the wall-clock time just before the first frame went
+out, the clock of ``scenario_support.Probe``'s capture, from which the
+scenarios measure reaction times.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import can
+import msgpack
+from can.interfaces.udp_multicast.utils import pack_message
+
+from millctl.config.models import Bus
+from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, open_bus
+
+CAN_BITRATE = 500_000
+"""The mill bus's bit rate (config/millbus.dbc)."""
+FRAME_BITS = 135
+"""An 8-byte standard frame with worst-case stuffing and the interframe space (docs/protocol.md, bus load)."""
+MAX_FRAME_RATE_HZ = CAN_BITRATE / FRAME_BITS
+"""The most frames a 500 kbit/s CAN bus carries per second (~3700): a flood at the bus's maximum rate."""
+BURST_S = 0.005
+"""A flood sends its frames in bursts this far apart (s)."""
+
+
+def raw_frame(arbitration_id: int, data: bytes, **kwargs: object) -> can.Message:
+    """A frame as a faulty or hostile sender puts it on the bus (python-can's own checks off)."""
+    fields: dict[str, object] = {"is_extended_id": False, "check": False, **kwargs}
+    return can.Message(arbitration_id=arbitration_id, data=data, **fields)  # type: ignore[arg-type]
+
+
+@dataclass
+class Background:
+    """A sender running in a thread until stopped (a flood, a replay, a second sender)."""
+
+    name: str
+    sent: int = 0
+    first_sent_t: float | None = None
+    """Wall-clock time just before its first frame went out (None before)."""
+    refused: int = 0
+    """Sends the interface refused (its transmit queue full)."""
+    _halt: threading.Event = field(default_factory=threading.Event)
+    _thread: threading.Thread | None = None
+
+    def start(self, body: Callable[[Background], None]) -> Background:
+        self._thread = threading.Thread(target=body, args=(self,), name=f"adversary-{self.name}", daemon=True)
+        self._thread.start()
+        return self
+
+    @property
+    def halted(self) -> bool:
+        return self._halt.is_set()
+
+    def stop(self) -> int:
+        """Stop the sender; return how many frames it sent."""
+        self._halt.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        return self.sent
+
+
+class Adversary:
+    """Crafted, forged, replayed and malformed frames, floods and a second sender, on one bus."""
+
+    def __init__(self, bus_config: Bus, codec: Codec) -> None:
+        self.bus_config = bus_config
+        self.bus = open_bus(bus_config)
+        self.codec = codec
+        self._lock = threading.Lock()
+        self._running: list[Background] = []
+
+    # -- crafting --------------------------------------------------------------------------------------------
+    def forged(self, message: MillMessage, counter: int = 0) -> can.Message:
+        """A well-formed frame with a good CRC, from the wrong sender."""
+        return self.codec.encode(message, counter)
+
+    def bad_crc(self, message: MillMessage, counter: int = 0) -> can.Message:
+        """The frame of ``message`` with its CRC byte inverted (every bit wrong)."""
+        frame = self.codec.encode(message, counter)
+        data = bytes([frame.data[0] ^ 0xFF]) + bytes(frame.data[1:])
+        return raw_frame(frame.arbitration_id, data, dlc=len(data))
+
+    def malformed(self) -> dict[str, can.Message]:
+        """One frame of every malformed kind this transport can carry, each on an identifier someone reads."""
+        frames = {
+            "one byte on Command": raw_frame(0x010, b"\x01", dlc=1),
+            "empty NodeStatus": raw_frame(0x100, b"", dlc=0),
+            "two bytes on DriveTelemetry": raw_frame(0x110, b"\x00\x01", dlc=2),
+            "remote frame on Heartbeat": raw_frame(0x020, b"", is_remote_frame=True, dlc=8),
+            "extended identifier 0x30": raw_frame(0x030, bytes(8), is_extended_id=True, dlc=8),
+            "unknown identifier 0x555": raw_frame(0x555, bytes(8), dlc=8),
+        }
+        if self.is_udp:  # a CAN controller reports these; on udp_multicast anyone can send one
+            frames["error frame"] = raw_frame(0x020, bytes(8), is_error_frame=True, dlc=8)
+        return frames
+
+    def malformed_datagrams(self) -> dict[str, bytes]:
+        """udp_multicast only: datagrams that no classic CAN bus carries, and some that are no frame at all."""
+        return {
+            "one byte": b"\x01",
+            "a msgpack number": msgpack.packb(7),
+            "a map that is no frame": msgpack.packb({"no": "frame"}),
+            "DLC 3 with 8 bytes on Setpoints": pack_message(raw_frame(0x030, bytes(8), dlc=3)),
+            "DLC 8 with 1 byte on Heartbeat": pack_message(raw_frame(0x020, b"\x00", dlc=8)),
+            "FD frame on NodeStatus": pack_message(raw_frame(0x100, bytes(12), is_fd=True, dlc=12)),
+        }
+
+    @property
+    def is_udp(self) -> bool:
+        """True on udp_multicast, where datagrams that are not frames can be sent too."""
+        return "udp_multicast" in self.bus_config.interface
+
+    # -- sending ---------------------------------------------------------------------------------------------
+    def send(self, *frames: can.Message) -> float:
+        """Send frames back to back; return the wall-clock time just before the first went out."""
+        t = time.time()
+        with self._lock:
+            for frame in frames:
+                self.bus.send(frame)
+        return t
+
+    def datagrams(self, *payloads: bytes) -> float:
+        """udp_multicast only: datagrams to the group that are not frames at all (TTL 0, like the bus)."""
+        assert self.is_udp, "datagrams exist only on udp_multicast"
+        port = int(self.bus_config.options["port"])
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 0)
+            t = time.time()
+            for payload in payloads:
+                sock.sendto(payload, (self.bus_config.channel, port))
+        return t
+
+    # -- background senders ------------------------------------------------------------------------------------
+    def _background(self, name: str, body: Callable[[Background], None]) -> Background:
+        sender = Background(name).start(body)
+        self._running.append(sender)
+        return sender
+
+    def flood(self, frame: can.Message, rate_hz: float = MAX_FRAME_RATE_HZ) -> Background:
+        """Send ``frame`` over and over at ``rate_hz`` (in bursts every ``BURST_S``) until stopped."""
+
+        def body(sender: Background) -> None:
+            start, credit = time.monotonic(), 0.0
+            while not sender.halted:
+                due = rate_hz * (time.monotonic() - start) - sender.sent
+                credit = min(due, rate_hz * 0.1)  # never more than 0.1 s of frames at once after a stall
+                with self._lock:
+                    for _ in range(int(credit)):
+                        try:
+                            self.bus.send(frame)
+                        except can.CanError:  # the interface's queue is full: the bus is saturated
+                            sender.refused += 1
+                            break
+                        sender.sent += 1
+                time.sleep(BURST_S)
+
+        return self._background(f"flood-0x{frame.arbitration_id:03X}", body)
+
+    def replay(self, frames: list[can.Message], period_s: float) -> Background:
+        """Send the recorded ``frames`` in a loop, one every ``period_s``, until stopped."""
+
+        def body(sender: Background) -> None:
+            next_s = time.monotonic()
+            while not sender.halted:
+                self.send(frames[sender.sent % len(frames)])
+                sender.sent += 1
+                next_s += period_s
+                time.sleep(max(next_s - time.monotonic(), 0.0))
+
+        return self._background("replay", body)
+
+    def answer(self, kinds: tuple[type[MillMessage], ...], forge: Callable[[Decoded], MillMessage]) -> Background:
+        """A second sender: every genuine frame of ``kinds`` heard is answered at once with ``forge``, counter + 1."""
+
+        def body(sender: Background) -> None:
+            for decoded in self._heard(sender, kinds):
+                if decoded.counter is not None:
+                    t = self.send(self.forged(forge(decoded), (decoded.counter + 1) % 16))
+                    sender.first_sent_t = sender.first_sent_t or t
+                    sender.sent += 1
+
+        return self._background("second-sender", body)
+
+    def record(self, kind: type[MillMessage], count: int, timeout_s: float) -> list[can.Message]:
+        """The next ``count`` frames of ``kind`` heard on the bus, as they were (for a replay)."""
+        recording: list[can.Message] = []
+        deadline = time.monotonic() + timeout_s
+        while len(recording) < count and time.monotonic() < deadline:
+            frame = self.bus.recv(0.05)
+            if frame is None:
+                continue
+            try:
+                if self.codec.decode(frame).kind is kind:
+                    recording.append(frame)
+            except ProtocolError:
+                continue
+        return recording
+
+    def _heard(self, sender: Background, kinds: tuple[type[MillMessage], ...]) -> Iterable[Decoded]:
+        while not sender.halted:
+            frame = self.bus.recv(0.05)
+            if frame is None:
+                continue
+            try:
+                decoded = self.codec.decode(frame)
+            except ProtocolError:
+                continue
+            if decoded.kind in kinds and decoded.crc_ok:
+                yield decoded
+
+    def close(self) -> None:
+        """Stop every background sender and shut the bus down."""
+        for sender in self._running:
+            sender.stop()
+        self.bus.shutdown()
+
+
+__all__ = ["MAX_FRAME_RATE_HZ", "Adversary", "Background", "raw_frame"]

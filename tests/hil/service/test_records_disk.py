@@ -1,0 +1,50 @@
+"""A full records disk (a 1 MiB tmpfs in a private mount namespace) keeps the mill controlled and says so (SAFETY 23).
+
+The scenario runs in ``tests.support.disk_full`` under ``unshare -rm`` (no
+privilege needed, nothing outside sees the mount); this test judges what it
+printed.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from tests.support.service import REPO, private_dir
+
+
+def _unshare_works() -> bool:
+    if shutil.which("unshare") is None:
+        return False
+    probe = subprocess.run(["unshare", "-rm", "true"], capture_output=True, check=False)
+    return probe.returncode == 0
+
+
+@pytest.mark.skipif(not _unshare_works(), reason="needs unprivileged user and mount namespaces (unshare -rm)")
+def test_a_full_records_disk_keeps_the_mill_controlled_says_so_and_damages_nothing() -> None:
+    with private_dir() as directory:
+        done = subprocess.run(
+            ["unshare", "-rm", sys.executable, "-m", "tests.support.disk_full", str(directory)],
+            cwd=REPO, capture_output=True, text=True, timeout=300, check=False,
+        )
+        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    # visible: a status warning and an event, naming the cause
+    assert seen["warnings"] and "No space left on device" in seen["warnings"][0]
+    assert "the mill is controlled as before" in seen["warnings"][0]
+    assert seen["records_events"] and "No space left on device" in seen["records_events"][0]
+    # the running recipe stopped in a controlled way, the mill still commanded, no trip, no watchdog
+    assert seen["recipe_state"] == "ABORTED" and "records cannot be written" in seen["recipe_reason"]
+    assert seen["state"] == "ARMED" and seen["trip_cause"] == "" and seen["node_faults"] == []
+    assert seen["links_stale"] == []
+    assert seen["set_while_full"] == "RUNNING"
+    # the warning clears once there is room, and the service stops cleanly
+    assert seen["warnings_after_free"] == [] and seen["exit_code"] == 0
+    # nothing already written is damaged: every record parses, every bus-log line is whole
+    assert seen["records"]["jsonl_records"] > 0 and seen["records"]["bus_lines"] > 0
+    assert seen["records"]["bad_bus_lines"] == []
+    assert seen["events_after"][-1] == "service"
