@@ -50,7 +50,6 @@ from tests.hil.scenario_support import (
     Mill,
     Probe,
     Seen,
-    bound_scale,
     is_command,
     is_kind,
     is_status,
@@ -396,8 +395,7 @@ def test_babbling_node_controller_stays_responsive_or_trips_with_a_named_cause(
     mill.run_at(*LOW_RPM)
     invalid_before = mill.status()["invalid_frames"]
 
-    # In the VM the babble is slowed by the measured emulation factor: the same load relative to the machine.
-    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ / bound_scale())
+    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ)
     deadline = time.monotonic() + mill.timeout(2.0)
     while time.monotonic() < deadline:  # the API keeps answering under the babble
         during = mill.status()
