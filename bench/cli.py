@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench import levels, node_budget, plots, report, safety_timing, work_precision
+from bench import levels, node_budget, plots, report, safety_timing, study, work_precision
 from bench.common import corrected_model, loadavg_now, machine
 from bench.options import PIECES, add_options
 from bench.scenes import scene_set
@@ -72,6 +72,9 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
     if "safety" in only:
         _progress("safety timing (hil tier) and bus load")
         res["safety_timing"] = safety_timing.run(args.quick, args.trials, _progress)
+    if "study" in only:
+        _progress("design-study throughput (100 x 100 map; --quick 10 x 10)")
+        res["study"] = study.run(args.quick)
     res["duration_s"] = time.perf_counter() - start
     res["loadavg_end"] = loadavg_now()
     return res

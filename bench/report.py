@@ -346,6 +346,10 @@ def render(res: dict[str, Any]) -> str:
         out += _node(res["node_budget"])
     if "safety_timing" in res:
         out += _safety(res["safety_timing"])
+    if "study" in res:
+        from bench.study import report as study_report
+
+        out += study_report(res["study"])
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -40,6 +40,8 @@ def _print_tree(console: Console, data: dict[str, object], prefix: str) -> None:
     for key, value in data.items():
         if isinstance(value, dict) and value:
             _print_tree(console, value, f"{prefix}{key}.")
+        elif key.endswith("_mode") and isinstance(value, int):  # permission bits, as chmod and TOML write them
+            console.print(f"{prefix}{key} = 0o{value:o}", markup=False)
         else:
             console.print(f"{prefix}{key} = {value!r}", markup=False)
 

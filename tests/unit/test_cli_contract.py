@@ -150,3 +150,36 @@ def test_figures_are_written_with_the_users_umask(tmp_path: Path) -> None:
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "fig.png").stat().st_mode) == 0o644
+
+
+def test_config_show_prints_modes_in_octal(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["config", "show"]) == ExitCode.OK
+    assert "service.socket_mode = 0o600" in capsys.readouterr().out
+
+
+def test_docs_name_no_file_a_user_does_not_have() -> None:
+    for doc in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        assert "../shared/" not in doc.read_text(), doc
+
+
+def _progress(**changes: object) -> object:
+    from millctl.api import RecipeProgress
+
+    base = {"run_id": "r", "recipe": "demo", "recipe_file": "demo.toml", "state": "RUNNING", "reason": "",
+            "step": 2, "steps": 4, "kind": "hold", "elapsed_s": 10.0, "step_elapsed_s": 1.0, "remaining_s": 30.0,
+            "record": "x.jsonl"}
+    return RecipeProgress.model_validate({**base, **changes})
+
+
+def test_recipe_run_progress_never_shows_none_and_counts_the_stop_down(monkeypatch: pytest.MonkeyPatch) -> None:
+    from millctl.cli import recipe_run_cmd as cmd
+
+    assert cmd._step(_progress()) == "step 2/4 (hold)"  # type: ignore[arg-type]
+    stopping = _progress(state="STOPPING", step=4, kind=None, remaining_s=8.0)
+    assert "None" not in cmd._line(stopping) and "stopping" in cmd._step(stopping)  # type: ignore[arg-type]
+    now = [100.0]
+    monkeypatch.setattr(cmd.time, "monotonic", lambda: now[0])
+    clock = cmd._StopClock()
+    assert clock.remaining_s(stopping) == 8.0  # type: ignore[arg-type]
+    now[0] += 3.0
+    assert clock.remaining_s(stopping) == 5.0  # type: ignore[arg-type]  # the service's figure stays at 8

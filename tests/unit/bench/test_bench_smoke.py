@@ -141,3 +141,26 @@ def test_millctl_bench_is_an_alias(tmp_path, capsys) -> None:  # type: ignore[no
     path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine()}))
     assert millctl_main(["bench", "--from-json", str(path)]) == 0
     assert capsys.readouterr().out.startswith("# Benchmarks")
+
+
+def test_study_section_reports_points_and_events_per_core() -> None:
+    from bench import study
+
+    def run(points: int, events: int, workers: int, elapsed: float, name: str) -> dict:
+        return {
+            "points": points, "events": events, "workers": workers, "backend": name, "elapsed_s": elapsed,
+            "points_per_s": points / elapsed, "events_per_s": events / elapsed,
+            "points_per_s_per_core": points / elapsed / workers, "events_per_s_per_core": events / elapsed / workers,
+        }  # fmt: skip
+
+    res = {
+        "map": run(10_000, 40_000, 2, 100.0, "local"),
+        "baseline": run(100, 400, 1, 2.0, "serial"),
+        "offline": run(9, 300, 1, 1.0, "serial"),
+        "parallel_efficiency": 1.0,
+        "speedup_vs_one_worker": 2.0,
+    }
+    text = "\n".join(study.report(res))
+    assert "| map 100 × 100 | 10,000 | local × 2 | 100.0 s | 100 | 50 | 200 |" in text
+    assert "per-core efficiency 100%" in text
+    assert "study" in cli.build_parser().format_help()
