@@ -1,4 +1,4 @@
-"""``millctl bus load|frames``: the bus-load figure and the frame table, computed from the DBC."""
+"""``millctl bus load|frames|log convert``: bus load and frame table from the DBC; the bus log in every format."""
 
 from __future__ import annotations
 
@@ -52,6 +52,27 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     frames.add_argument("--json", action="store_true", help="machine-readable output")
     frames.add_argument("--markdown", action="store_true", help="the frame table as Markdown (docs/protocol.md)")
     frames.set_defaults(handler=_frames)
+    log = sub.add_parser("log", help="the service's bus log (records/bus/*.log)")
+    log_sub = log.add_subparsers(dest="log_command", metavar="ACTION", required=True)
+    convert = log_sub.add_parser(
+        "convert", help="convert a bus log to ASC, BLF, TRC, CSV or MF4 (by the output's suffix)",
+        description="Convert a bus log with python-can's readers and writers (as python -m can.logconvert): "
+        ".log (candump), .asc (Vector), .blf (Vector binary), .trc (PEAK), .csv, .mf4 (needs millctl[mf4]). "
+        "Tx/Rx and the channel go across with every frame; an existing output is never overwritten.",
+    )
+    convert.add_argument("input", help="bus log to read")
+    convert.add_argument("output", help="file to write; its suffix picks the format")
+    convert.set_defaults(handler=_convert)
+
+
+def _convert(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from millctl.protocol.buslog_convert import convert_log
+
+    count = convert_log(Path(args.input), Path(args.output))
+    stdout_console().print(f"{args.input} → {args.output}: {count} frames", markup=False)
+    return int(ExitCode.OK)
 
 
 def load_report(args: argparse.Namespace) -> dict[str, Any]:
