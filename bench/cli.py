@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench import levels, node_budget, plots, report, safety_timing, study, work_precision
+from bench import compiled, levels, node_budget, plots, report, safety_timing, study, work_precision
 from bench.common import corrected_model, loadavg_now, machine
 from bench.options import PIECES, add_options
 from bench.scenes import scene_set
@@ -63,6 +63,8 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
         scenes = scene_set(corrected_model(), lhs)
         _progress(f"work-precision: {len(scenes)} scenes")
         res["work_precision"] = work_precision.run(scenes, args.quick, _progress)
+    if "compiled" in only:
+        res["compiled"] = compiled.run(args.quick, _progress)
     if "levels" in only:
         _progress("levels of detail")
         res["levels"] = levels.run(args.quick)
@@ -76,6 +78,7 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
         _progress("design-study throughput (100 x 100 map; --quick 10 x 10)")
         res["study"] = study.run(args.quick)
     res["duration_s"] = time.perf_counter() - start
+    res.update(report.issue17_figures(res))
     res["loadavg_end"] = loadavg_now()
     return res
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-PIECES = ("work-precision", "levels", "node", "safety", "study")
+PIECES = ("work-precision", "compiled", "levels", "node", "safety", "study")
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

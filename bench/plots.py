@@ -8,7 +8,8 @@ from typing import Any
 from bench.work_precision import ERROR_FLOOR
 
 STYLE = {
-    "exact": ("o-", "exact (bracket + brentq), tol sweep"),
+    "exact": ("o-", "exact, compiled (bracket + brentq), tol sweep"),
+    "exact-reference": ("o--", "exact, numpy/scipy reference"),
     "legacy": ("s-", "paper: fixed dt, end-point average, dt sweep"),
     "legacy-interp": ("^-", "paper + linear interpolation, dt sweep"),
     "legacy-arcs": ("D-", "paper's q-arc wall, q sweep"),
@@ -36,6 +37,7 @@ def work_precision_plot(summary: list[dict[str, Any]], path: Path, caption: str)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator, NullFormatter
 
     fig, axes = plt.subplots(1, len(PANELS), figsize=(15, 4.8), constrained_layout=True)
     for ax, (key, label) in zip(axes, PANELS, strict=True):
@@ -48,6 +50,11 @@ def work_precision_plot(summary: list[dict[str, Any]], path: Path, caption: str)
             if pts:
                 ax.loglog(*zip(*pts, strict=True), marker, label=name, alpha=0.85)
         ax.set_xlabel("time per event (ms, median over scenes)")
+        # one label per decade, none on the minor ticks: the default log labels overlap (issue 17)
+        ax.xaxis.set_major_locator(LogLocator(base=10.0, numticks=8))
+        ax.xaxis.set_major_formatter(LogFormatterSciNotation(base=10.0))
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.tick_params(axis="x", labelsize=8)
         ax.set_ylabel(f"median {label}")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=8, loc="best")

@@ -1,12 +1,12 @@
-"""Reference first impacts: the closed form where r_d = 0, mpmath (40 digits) elsewhere.
+"""Reference first impacts: the closed form where r_d = 0, the independent scan + mpmath (40 digits) elsewhere.
 
 With r_d = 0 (corrected variant) a rod leaves the wall at sin θ_d = r0 ω_r²/g
 (or at t = 0 where it starts unsupported), flies a parabola and lands after
 the flight time of :func:`~millctl.physics.reference.closed_form_flight_time_s`; the contact
 point, the relative normal velocity and the energy follow in closed form. The
-closed form is used when the mpmath reference says the first impact is that
-rod's wall landing; the two are cross-checked and the largest disagreement is
-reported with the results.
+closed form is used when the independent reference (:mod:`bench.independent`, which
+never sees an engine's answer) says the first impact is that rod's wall landing; the
+two are cross-checked and the largest disagreement is reported with the results.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from dataclasses import asdict, dataclass
 
 import mpmath
 
+from bench.independent import independent_first_impact
 from millctl.config import ModelVariant
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.methods import ImpactEvent
 from millctl.physics.model import Scene
-from millctl.physics.reference import reference_first_impact
 
 REFERENCE_DIGITS = 40
 
@@ -31,7 +31,7 @@ class Reference:
 
     event: ImpactEvent | None
     kind: str
-    """"closed-form", "mpmath-40" or "none"."""
+    """"closed-form", "independent-40" or "none"."""
     closed_vs_mpmath_s: float = math.nan
     """|t_closed − t_mpmath| (s) where both exist."""
 
@@ -85,12 +85,16 @@ def closed_form_wall_landing(scene: Scene, rod: int, digits: int = REFERENCE_DIG
 
 
 def reference(scene: Scene, digits: int = REFERENCE_DIGITS) -> Reference:
-    """The scene's reference first impact (see module docstring)."""
-    mp = reference_first_impact(scene, digits=digits)
-    if mp is None:
+    """The scene's reference first impact, independent of every engine (:mod:`bench.independent`).
+
+    Where r_d = 0 the closed form of the same rod's wall landing is the reference instead,
+    and its distance to the independent one is recorded as a cross-check.
+    """
+    ind = independent_first_impact(scene, digits=digits)
+    if ind is None:
         return Reference(None, "none")
-    if mp.partner == -1:
-        closed = closed_form_wall_landing(scene, mp.rod)
+    if ind.partner == -1:
+        closed = closed_form_wall_landing(scene, ind.rod)
         if closed is not None:
-            return Reference(closed, "closed-form", abs(closed.time_s - mp.time_s))
-    return Reference(mp, f"mpmath-{digits}")
+            return Reference(closed, "closed-form", abs(closed.time_s - ind.time_s))
+    return Reference(ind, f"independent-{digits}")

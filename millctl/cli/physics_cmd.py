@@ -31,9 +31,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--alpha0-deg", type=finite_float, default=0.0, help="initial cam phase (default 0)")
     parser.add_argument(
         "--method",
-        choices=["exact", "legacy", "legacy-interp", "legacy-arcs", "ivp"],
+        choices=["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp"],
         default="exact",
-        help="collision scheme (legacy: the paper's fixed step)",
+        help="collision scheme (exact: compiled; exact-reference: the numpy engine; legacy: the paper's fixed step)",
     )
     parser.add_argument(
         "--dt", type=nonnegative_float, default=1e-4, metavar="S", help="legacy time step (default 1e-4 s)"

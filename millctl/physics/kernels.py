@@ -878,6 +878,29 @@ def telemetry_samples(
 
 
 @njit(cache=True)
+def _detachment_times(p, horizon):  # type: ignore[no-untyped-def]
+    n = int(p[_N])
+    tr = _trig_rows(p, n)
+    st = np.zeros((n, _STATE_COLUMNS))
+    out = np.full(n, math.inf)
+    for i in range(n):
+        if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
+            out[i] = 0.0
+        elif not _never_detaches(tr, i):
+            out[i] = _falling_zero_windowed(p, st, tr, i, 1.0, 0.0, horizon)
+    return out
+
+
+def detachment_times(row: FloatArray, horizon_s: float) -> FloatArray:
+    """Every rod's first detachment in [0, horizon] (s; inf: pinned), compiled.
+
+    The shared search the benchmark times on its own (zero-length departures are not resolved here).
+    """
+    result: FloatArray = _detachment_times(np.ascontiguousarray(row, dtype=np.float64), float(horizon_s))
+    return result
+
+
+@njit(cache=True)
 def _batch(rows, all_rods, horizon, flight_cap, tol):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], len(OUT)))
     for k in range(rows.shape[0]):
@@ -917,4 +940,14 @@ def scene_rows(scenes: list[Scene]) -> FloatArray:
     return np.array([scene_row(s) for s in scenes]).reshape(len(scenes), len(PARAMS))
 
 
-__all__ = ["OUT", "PARAMS", "TELEMETRY", "WALL", "first_impacts", "scene_row", "scene_rows", "telemetry_samples"]
+__all__ = [
+    "OUT",
+    "PARAMS",
+    "TELEMETRY",
+    "WALL",
+    "detachment_times",
+    "first_impacts",
+    "scene_row",
+    "scene_rows",
+    "telemetry_samples",
+]

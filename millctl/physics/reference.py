@@ -105,25 +105,31 @@ def reference_first_impact(scene: Scene, digits: int = 40, t_end_s: float = 5.0)
             return (x - xb) ** 2 + (y - yb) ** 2 - 4 * mp.rr**2
 
         t_c = mpmath.findroot(sep, mpmath.mpf(approx.time_s))
-        x, y, vx, vy = mp.rel(i, t_d.get(i), t_c)
-        if j < 0:
-            nx, ny = x, y
-            rvx, rvy = vx + mp.wr * y, vy - mp.wr * x
-        else:
-            xb, yb, vxb, vyb = mp.rel(j, t_d.get(j), t_c)
-            nx, ny, rvx, rvy = xb - x, yb - y, vx - vxb, vy - vyb
-        norm = mpmath.sqrt(nx * nx + ny * ny)
-        nx, ny = nx / norm, ny / norm
-        al = mp.a0 + mp.wv * t_c
-        yc = mp.l - mp.rd + mp.rd * mpmath.sin(al)
-        vyc = mp.rd * mp.wv * mpmath.cos(al)
-        v_n = float(rvx * nx + rvy * ny)
-        speed = float(mpmath.sqrt(vx * vx + (vy + vyc) ** 2))
-        px, py = float(x + mp.rr * nx), float(yc + y + mp.rr * ny)
-        backed = j < 0 or j not in t_d or t_d[j] >= t_c
-        energy = impact_energy_j(scene.model, v_n, speed, bool(backed))
-        v_t = float(rvy * nx - rvx * ny)
-        return ImpactEvent(float(t_c), i, j, px, py, v_n, speed, energy, f"mpmath-{digits}", v_t)
+        return impact_at(mp, i, j, t_d, t_c, f"mpmath-{digits}")
 
 
-__all__ = ["closed_form_flight_time_s", "reference_first_impact"]
+def impact_at(mp: _Mp, i: int, j: int, t_d: dict[int, Any], t_c: Any, label: str) -> ImpactEvent:
+    """The impact of rod i on j (−1 the wall) at t_c, every quantity in mpmath (``t_d``: departures so far)."""
+    scene = mp.scene
+    x, y, vx, vy = mp.rel(i, t_d.get(i), t_c)
+    if j < 0:
+        nx, ny = x, y
+        rvx, rvy = vx + mp.wr * y, vy - mp.wr * x
+    else:
+        xb, yb, vxb, vyb = mp.rel(j, t_d.get(j), t_c)
+        nx, ny, rvx, rvy = xb - x, yb - y, vx - vxb, vy - vyb
+    norm = mpmath.sqrt(nx * nx + ny * ny)
+    nx, ny = nx / norm, ny / norm
+    al = mp.a0 + mp.wv * t_c
+    yc = mp.l - mp.rd + mp.rd * mpmath.sin(al)
+    vyc = mp.rd * mp.wv * mpmath.cos(al)
+    v_n = float(rvx * nx + rvy * ny)
+    speed = float(mpmath.sqrt(vx * vx + (vy + vyc) ** 2))
+    px, py = float(x + mp.rr * nx), float(yc + y + mp.rr * ny)
+    backed = j < 0 or j not in t_d or t_d[j] >= t_c
+    energy = impact_energy_j(scene.model, v_n, speed, bool(backed))
+    v_t = float(rvy * nx - rvx * ny)
+    return ImpactEvent(float(t_c), i, j, px, py, v_n, speed, energy, label, v_t)
+
+
+__all__ = ["closed_form_flight_time_s", "impact_at", "reference_first_impact"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import pytest
 
@@ -54,7 +55,7 @@ def test_work_precision_on_two_scenes(monkeypatch: pytest.MonkeyPatch) -> None:
     ]
     monkeypatch.setattr(work_precision, "sweeps", lambda quick: settings)
     model = corrected_model()
-    scenes = lhs_scenes(model, 1) + [s for s in hard_scenes(model) if s.name == "gamma-1.5"]
+    scenes = [s for s in hard_scenes(model) if s.name in ("near-limit", "slow-long-flight")]  # one rod: quick
     res = work_precision.run(scenes, quick=True)
     assert {r["verdict"] for r in res["rows"]} <= VERDICTS
     assert len(res["rows"]) == len(scenes) * len(settings)
@@ -68,6 +69,46 @@ def test_work_precision_on_two_scenes(monkeypatch: pytest.MonkeyPatch) -> None:
         | {"work_precision": json.loads(json.dumps(res, default=str))}
     )
     assert "## 1. Work–precision" in text and "| exact | tol=4ulp |" in text
+    figures = report.issue17_figures({"work_precision": res})
+    assert set(figures["missed_events"]) == {"exact", "legacy", "ivp"}
+    assert figures["missed_events"]["exact"]["tol=4ulp"] == 0
+    assert "## Compiled engine (issue 17)" in text
+
+
+def test_independent_reference_finds_the_closed_form_landing() -> None:
+    """The independent reference (dense scan + mpmath, never an engine's answer) against r_d = 0's closed form."""
+    from bench.independent import independent_first_impact
+    from bench.references import closed_form_wall_landing
+
+    scene = next(s for s in hard_scenes(corrected_model()) if s.name == "slow-long-flight").scene
+    import dataclasses
+
+    flat = dataclasses.replace(scene, model=dataclasses.replace(scene.model, eccentricity_m=0.0))
+    ind = independent_first_impact(flat)
+    closed = closed_form_wall_landing(flat, 0)
+    assert ind is not None and closed is not None
+    assert (ind.rod, ind.partner) == (0, -1)
+    assert abs(ind.time_s - closed.time_s) < 1e-15
+
+
+def test_failures_count_as_infinite_error_in_the_medians() -> None:
+    setting = work_precision.Setting("ivp", "rtol=1e-06", {"tol": 1e-6})
+    rows = [
+        {
+            "method": "ivp",
+            "setting": "rtol=1e-06",
+            "seconds": 1.0,
+            "verdict": "matched",
+            "time_s": 1e-9,
+            "point_m": 0.0,
+            "energy_rel": 0.0,
+            "v_n_rel": 0.0,
+        },
+        {"method": "ivp", "setting": "rtol=1e-06", "seconds": 1.0, "verdict": "missed"},
+        {"method": "ivp", "setting": "rtol=1e-06", "seconds": 1.0, "verdict": "spurious"},
+    ]
+    summary = work_precision.summarise(rows, [setting])[0]
+    assert summary["time_s_median"] == math.inf and summary["missed"] == 1 and summary["spurious"] == 1
 
 
 def _machine() -> dict[str, object]:
@@ -98,6 +139,20 @@ def test_levels_and_node_budget_structure() -> None:
     res = {"command": "t", "quick": True, "duration_s": 1.0, "machine": _machine(), "levels": lv, "node_budget": nb}
     text = report.render(res)
     assert "## 2. Levels of detail" in text and "### Node tick budget" in text
+    # The figures measured above are the ones printed (read back from the text, to 3 significant digits).
+    i = lv["interlock"]
+    assert i["vector_s_per_point"] * i["points"] == pytest.approx(i["vector_s_total"], rel=1e-9)
+    printed_speedup = re.search(r"Vectorised interlock vs scalar: \*\*([0-9.e+-]+)×\*\*", text)
+    assert printed_speedup is not None
+    assert float(printed_speedup[1]) == pytest.approx(i["speedup_vector_vs_scalar"], rel=5e-3)
+    printed_scalar_us = re.search(r"scalar, per point \| ([0-9.e+-]+) µs \| 1 \|", text)
+    assert printed_scalar_us is not None
+    assert float(printed_scalar_us[1]) == pytest.approx(i["scalar_s_per_point"] * 1e6, rel=5e-3)
+    for worker in ("thread", "inline"):
+        row = re.search(rf"^\| {worker} \| (\d+) \| ([0-9.e+-]+) ms \|", text, re.MULTILINE)
+        assert row is not None, f"no node-budget row for the {worker} worker"
+        assert int(row[1]) == run["ticks"]
+        assert float(row[2]) == pytest.approx(run["tick_mean_s"] * 1e3, rel=5e-3)
 
 
 def test_cli_renders_a_saved_results_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,134 @@
+"""Issue 17's figures for the compiled engine: batch throughput, agreement, compile and cached start, interlock.
+
+* batch: :func:`millctl.physics.batch.first_impacts` on N random scenes
+  (:func:`millctl.physics.agreement.random_scenes`), one-rod events (``rods="one"``, the
+  telemetry's and a design study's unit) and whole-scene first impacts (``rods="all"``);
+  events per second per core = scenes / process CPU seconds (one thread; wall-clock too);
+* agreement: the batch against the numpy/scipy reference engine on N scenes (counted);
+* compile: a fresh process with an empty ``NUMBA_CACHE_DIR`` (first call compiles) and
+  a second one on that cache (the cached start), each timed from interpreter start to the
+  first batch result;
+* interlock: :meth:`Envelope.allows` (the scalar path in plain ``math``) per check.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from bench.common import bench_config, corrected_model
+from millctl.physics.agreement import compare, random_scenes
+from millctl.physics.batch import SceneBatch, first_impacts
+from millctl.safety import Envelope
+
+SEED = 17
+"""Seed of the random scenes (the same sample as tests/unit/physics/test_kernels.py draws from)."""
+
+_FIRST_CALL = (
+    "import time; t0 = time.perf_counter(); import math; "
+    "from millctl.physics.batch import SceneBatch, first_impacts; "
+    "from millctl.physics.telemetry import revolution_summary; "
+    "from bench.common import corrected_model; m = corrected_model(); "
+    "first_impacts(SceneBatch.broadcast(m, omega_r_rad_s=15.0, omega_v_rad_s=80.0), rods='one'); "
+    "first_impacts(SceneBatch.broadcast(m, omega_r_rad_s=15.0, omega_v_rad_s=80.0), rods='all'); "
+    "revolution_summary(m, 15.0, 80.0); print(time.perf_counter() - t0)"
+)
+
+
+def _cpu_and_wall(fn: Callable[[], object]) -> tuple[float, float]:
+    cpu, wall = time.process_time(), time.perf_counter()
+    fn()
+    return time.process_time() - cpu, time.perf_counter() - wall
+
+
+def batch(count: int) -> dict[str, Any]:
+    """Events per second per core of the batch API on ``count`` random scenes (median of 3 runs)."""
+    batch_ = SceneBatch.from_scenes(random_scenes(corrected_model(), count, SEED))
+    first_impacts(SceneBatch(batch_.rows[:2]), rods="one")  # load the compiled code
+    out: dict[str, Any] = {"scenes": count}
+    for rods in ("one", "all"):
+        runs = [_cpu_and_wall(lambda r=rods: first_impacts(batch_, rods=r)) for _ in range(3)]  # type: ignore[misc]
+        cpu = float(np.median([c for c, _ in runs]))
+        wall = float(np.median([w for _, w in runs]))
+        found = int(np.count_nonzero(first_impacts(batch_, rods=rods)["found"]))
+        out[rods] = {
+            "cpu_s": cpu,
+            "wall_s": wall,
+            "events_per_cpu_s": count / cpu,
+            "events_per_wall_s": count / wall,
+            "found": found,
+        }
+    return out
+
+
+def agreement(count: int) -> dict[str, Any]:
+    """The batch (rods='all') against the reference engine on ``count`` random scenes."""
+    start = time.perf_counter()
+    report = compare(random_scenes(corrected_model(), count, SEED))
+    return {
+        "scenes": report.scenes,
+        "agree": report.agree,
+        "fraction": report.fraction,
+        "largest_time_difference_s": report.largest_time_difference_s,
+        "disagreements": [{"index": k, "what": what} for k, what in report.disagreements],
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def compile_times() -> dict[str, Any]:
+    """First call with an empty numba cache (compiles), then a fresh process on that cache."""
+    with tempfile.TemporaryDirectory(prefix="bench-numba-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        out = {}
+        for label in ("first_call_s", "cached_start_s"):
+            done = subprocess.run(
+                [sys.executable, "-c", _FIRST_CALL], env=env, capture_output=True, text=True, check=True, timeout=900
+            )
+            out[label] = float(done.stdout.strip().splitlines()[-1])
+    return out
+
+
+def interlock(points: int, repeats: int) -> dict[str, Any]:
+    """Envelope.allows per check (µs): wall clock (perf_counter) and process CPU, median of ``repeats``."""
+    env = Envelope.from_config(bench_config())
+    rng = np.random.default_rng(SEED)
+    pairs = list(
+        zip(
+            rng.uniform(0.0, env.rotary_max_rpm, points).tolist(),
+            rng.uniform(0.0, env.vibration_max_rpm, points).tolist(),
+            strict=True,
+        )
+    )
+    allows = env.allows
+
+    def loop() -> None:
+        for a, b in pairs:
+            allows(a, b)
+
+    runs = [_cpu_and_wall(loop) for _ in range(repeats)]
+    return {
+        "points": points,
+        "scalar_us_wall": float(np.median([w for _, w in runs])) / points * 1e6,
+        "scalar_us_cpu": float(np.median([c for c, _ in runs])) / points * 1e6,
+    }
+
+
+def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[str, Any]:
+    """All of the above (``quick``: 10³ scenes, 300 compared, no compile-time processes)."""
+    out: dict[str, Any] = {}
+    progress("compiled: batch throughput")
+    out["batch"] = batch(1000 if quick else 10_000)
+    progress("compiled: agreement with the reference engine")
+    out["agreement"] = agreement(300 if quick else 10_000)
+    out["interlock"] = interlock(20_000, 5)
+    if not quick:
+        progress("compiled: first-call compile and cached start (two fresh processes)")
+        out["compile"] = compile_times()
+    return out
