@@ -51,10 +51,6 @@ class Confirmations:
             pending.last_sent_s = now_s
             pending.sends += 1
 
-    def drop(self, code: CommandCode) -> None:
-        """Stop awaiting ``code`` (the controller no longer wants it)."""
-        self.pending.pop(code, None)
-
     def in_flight(self, now_s: float) -> frozenset[CommandCode]:
         """Commands pending, or confirmed within the last confirmation bound (the node may still be acting)."""
         recent = {code for code, t in self.confirmed_s.items() if now_s - t <= self.confirm_s}

@@ -92,10 +92,6 @@ class TelemetryTracker:
         track.frames += 1
         return decoded.message
 
-    def seen_any(self) -> bool:
-        """True once any node frame has been accepted."""
-        return any(t.frames for t in self.tracks.values())
-
     def stale(self, now_s: float) -> list[str]:
         """Why the safety-relevant telemetry is stale (empty when fresh)."""
         reasons = []

@@ -105,7 +105,11 @@ class Commanding(MillView):
         temp = request.temp_c if request.furnace else None
         if temp is not None:
             what += f", furnace {temp:g} °C"
-        ok = await self._send(what, lambda c: c.set_speeds(request.rotary_rpm, request.vibration_rpm, temp_c=temp))
+        if request.linear:
+            what += " (linear path)"
+        ok = await self._send(what, lambda c: c.set_speeds(
+            request.rotary_rpm, request.vibration_rpm, temp_c=temp, rotary_rate_rpm_s=request.rotary_rate_rpm_s,
+            vibration_rate_rpm_s=request.vibration_rate_rpm_s, linear=request.linear))
         if ok and request.furnace and temp is None:
             await self._send("heater off", lambda c: c.set_furnace(None))
 

@@ -19,7 +19,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Input, Label, Static
+from textual.widgets import Checkbox, Input, Label, Static
 
 from millctl.api import CheckOut
 from millctl.errors import MillctlError
@@ -36,6 +36,11 @@ class SetRequest:
     vibration_rpm: float
     furnace: bool
     temp_c: float | None
+    rotary_rate_rpm_s: float | None = None
+    """Ramp rate of ω_r (rpm/s); None: the drive's maximum (the service's default)."""
+    vibration_rate_rpm_s: float | None = None
+    linear: bool = False
+    """One straight ramp in both axes (refused if the line leaves the envelope) instead of the sequenced path."""
 
 
 class InputError(ValueError):
@@ -52,12 +57,27 @@ def _number(text: str, what: str) -> float:
     return value
 
 
-def parse_request(rot: str, vib: str, temp: str) -> SetRequest:
-    """Parse the dialog's fields; an empty furnace field leaves the furnace alone, ``off`` turns the heater off."""
+def _rate(text: str, what: str) -> float | None:
+    """A ramp rate (rpm/s), or None when the field is empty (the drive's maximum)."""
+    if not text.strip():
+        return None
+    value = _number(text, what)
+    if value <= 0.0:
+        raise InputError(f"{what}: {value:g} rpm/s must be > 0 (empty: the drive's maximum)")
+    return value
+
+
+def parse_request(rot: str, vib: str, temp: str, rot_rate: str = "", vib_rate: str = "",
+                  linear: bool = False) -> SetRequest:
+    """Parse the dialog's fields; an empty furnace field leaves the furnace alone, ``off`` turns the heater off.
+
+    Empty rate fields leave the ramp rates at the drives' maxima; ``linear`` asks for the straight path.
+    """
     temp = temp.strip().lower()
     furnace = bool(temp)
     temp_c = None if temp in ("", "off") else _number(temp, "furnace °C")
-    return SetRequest(_number(rot, "ω_r"), _number(vib, "ω_v"), furnace, temp_c)
+    return SetRequest(_number(rot, "ω_r"), _number(vib, "ω_v"), furnace, temp_c,
+                      _rate(rot_rate, "ω_r rate"), _rate(vib_rate, "ω_v rate"), linear)
 
 
 class SetpointsModal(ModalScreen[SetRequest | None]):
@@ -88,6 +108,12 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
             with Horizontal(classes="field"):
                 yield Label("furnace (°C, off, or empty)", classes="field-label")
                 yield Input("" if temp is None else f"{temp:g}", id="temp", placeholder="unchanged")
+            with Horizontal(classes="field"):
+                yield Label("ramp rates ω_r, ω_v (rpm/s)", classes="field-label")
+                yield Input("", id="rot_rate", type="number", placeholder="ω_r: drive max")
+                yield Input("", id="vib_rate", type="number", placeholder="ω_v: drive max")
+            yield Checkbox("linear path: one straight ramp in both axes (refused if it leaves the envelope)",
+                           id="linear")
             yield Static(id="limit")
             yield Static(id="verdict")
             yield Static("Enter: check and send    Esc: cancel    Tab: next field", classes="hint")
@@ -99,7 +125,9 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
 
     def fields(self) -> SetRequest:
         """The parsed fields (raises :class:`InputError`)."""
-        return parse_request(*(self.query_one(f"#{name}", Input).value for name in ("rot", "vib", "temp")))
+        rot, vib, temp, rot_rate, vib_rate = (self.query_one(f"#{name}", Input).value
+                                              for name in ("rot", "vib", "temp", "rot_rate", "vib_rate"))
+        return parse_request(rot, vib, temp, rot_rate, vib_rate, self.query_one("#linear", Checkbox).value)
 
     def on_input_changed(self, event: Input.Changed) -> None:
         """Re-check on every keystroke."""

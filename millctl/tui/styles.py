@@ -21,7 +21,8 @@ TrendPanel { height: 1fr; }
 #physics { width: 1fr; height: 100%; }
 #links { width: 1.5fr; min-width: 48; height: 100%; }
 #events { height: 1fr; min-height: 4; }
-.dialog { width: 84; height: auto; border: thick $accent; background: $surface; padding: 1 2; }
+.dialog { width: 84; max-width: 100%; height: auto; max-height: 100%; overflow-y: auto;
+          border: thick $accent; background: $surface; padding: 1 2; }
 SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
 .dialog-title { text-style: bold; margin-bottom: 1; }
 .dialog > Static { width: 100%; height: auto; }

@@ -7,8 +7,11 @@ where vcan0 exists: in the VM of ``tests/vm/run``, or a host that has it).
 ``spawn`` starts helper processes (the node, the controller, a rogue sender)
 and kills and reaps them at teardown, failing the test if any was left running.
 
-Timeouts are multiplied by ``MILLCTL_TIME_SCALE`` (default 1; ``tests/vm/run``
-sets 10 because Python runs about 10x slower under software emulation).
+Waits for processes (``Transport.timeout``, the spawner's grace periods) are
+sized for an idle host and stretched by ``tests.support.pace``: times
+``MILLCTL_TIME_SCALE`` (the VM's emulation slowdown, measured by ``tests/vm/run``)
+and by the load measured when the wait starts. Physical bounds are not waits:
+see ``scenario_support.Bounds``.
 """
 
 from __future__ import annotations
@@ -30,19 +33,13 @@ from typing import Any
 import can
 import pytest
 
+from tests.support.pace import cpu_share, stretched, time_scale
+
 REPO = Path(__file__).resolve().parents[2]
 IN_VM = os.environ.get("MILLCTL_IN_VM") == "1"
 VCAN = "vcan0"
 # An administratively scoped IPv4 group; the netns routes 224.0.0.0/4 to lo.
 MULTICAST_GROUP = "239.74.163.2"
-
-
-def time_scale() -> float:
-    """The factor every timeout is multiplied by (env ``MILLCTL_TIME_SCALE``, default 1)."""
-    value = float(os.environ.get("MILLCTL_TIME_SCALE", "1"))
-    if value < 1:
-        raise ValueError(f"MILLCTL_TIME_SCALE must be >= 1, got {value}")
-    return value
 
 
 # --- where each transport can run -------------------------------------------
@@ -126,8 +123,8 @@ class Transport:
         return json.dumps(self.bus_kwargs)
 
     def timeout(self, seconds: float) -> float:
-        """A timeout of ``seconds`` on the host, scaled for slow machines (the VM)."""
-        return seconds * self.time_scale
+        """A wait of ``seconds`` on an idle host, scaled for the VM and stretched by the load now (support.pace)."""
+        return seconds * self.time_scale / cpu_share()
 
     def close(self) -> None:
         """Shut down every bus opened through this transport."""
@@ -212,7 +209,7 @@ class Spawner:
             proc = subprocess.Popen(
                 argv,
                 cwd=REPO,
-                env={**os.environ, **(env or {})},
+                env={**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})},  # a failure shows all they printed
                 stdin=subprocess.DEVNULL,
                 stdout=out,
                 stderr=subprocess.STDOUT,
@@ -227,21 +224,22 @@ class Spawner:
         return self._logs[proc.pid].read_text(errors="replace")
 
     def stop(self, proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM, grace_s: float = 5.0) -> int:
-        """Send ``sig`` to ``proc``'s process group, SIGKILL after ``grace_s`` (scaled); return its exit code.
+        """Send ``sig`` to ``proc``'s process group, SIGKILL after ``grace_s`` (stretched); return its exit code.
 
         The grace covers the whole group: helpers the child started
         (multiprocessing workers, its resource tracker) get it too.
         """
         _signal_group(proc.pid, sig)
-        deadline = time.monotonic() + grace_s * self.scale
+        grace_s = stretched(grace_s)
+        deadline = time.monotonic() + grace_s
         try:
-            rc = proc.wait(grace_s * self.scale)
+            rc = proc.wait(grace_s)
         except subprocess.TimeoutExpired:
             _signal_group(proc.pid, signal.SIGKILL)
             rc = proc.wait()
         if _wait_group_gone(proc.pid, deadline - time.monotonic()):
             _signal_group(proc.pid, signal.SIGKILL)
-            _wait_group_gone(proc.pid, KILL_WAIT_S * self.scale)
+            _wait_group_gone(proc.pid, stretched(KILL_WAIT_S))
         return rc
 
     def cleanup(self) -> list[str]:
@@ -254,7 +252,7 @@ class Spawner:
         leaked = []
         for proc in self._procs:
             running = proc.poll() is None  # poll() reaps an exited leader, so only its group is left
-            stragglers = [] if running else _wait_group_gone(proc.pid, LINGER_S * self.scale)
+            stragglers = [] if running else _wait_group_gone(proc.pid, stretched(LINGER_S))
             if running or stragglers:
                 who = ", ".join(_describe(pid) for pid in stragglers) or "itself"
                 leaked.append(
@@ -262,7 +260,7 @@ class Spawner:
                 )
             _signal_group(proc.pid, signal.SIGKILL)
             proc.wait()
-            _wait_group_gone(proc.pid, KILL_WAIT_S * self.scale)  # SIGKILL is delivered, not yet acted on
+            _wait_group_gone(proc.pid, stretched(KILL_WAIT_S))  # SIGKILL is delivered, not yet acted on
         return leaked
 
 

@@ -53,7 +53,8 @@ from millctl.protocol import (
     open_bus,
 )
 from millctl.safety import Envelope
-from tests.hil.conftest import IN_VM, time_scale
+from tests.hil.conftest import IN_VM
+from tests.support.pace import time_scale
 
 if TYPE_CHECKING:
     import subprocess
@@ -175,8 +176,22 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = ("watchdog_timeout_s", "challenge_lifetime_s", "min_stale_s", "setpoint_refresh_s")
-"""Timeouts of the config multiplied by the VM's factor there: Python ~10x slower cannot meet the host's."""
+VM_SCALED_KEYS = (
+    "watchdog_timeout_s",
+    "challenge_lifetime_s",
+    "min_stale_s",
+    "setpoint_refresh_s",
+    "startup_grace_s",
+    "setpoint_period_s",
+)
+"""Periods and timeouts of the config multiplied by the VM's measured slowdown there.
+
+Python under emulation runs several times slower (``tests/vm/run`` measures how much), so it cannot
+meet the host's periods: frames arrive in bursts, and a setpoint step that the node allows per
+``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh, start-up
+grace and challenge bounds would expire between two slow ticks. Scaling them all by one factor
+keeps their ratios.
+"""
 
 
 def _scale_keys(text: str, factor: float) -> str:
@@ -338,8 +353,12 @@ class Probe:
 # --- the mill under test --------------------------------------------------------------------------------------
 
 
-def wait_for(condition: Callable[[], Any], timeout_s: float, what: str) -> Any:
-    """Poll ``condition()`` until it returns something true, and return it (a safety net, not a timing check)."""
+def wait_for(condition: Callable[[], Any], timeout_s: float, what: str | Callable[[], str]) -> Any:
+    """Poll ``condition()`` until it returns something true, and return it (a safety net, not a timing check).
+
+    ``timeout_s`` comes stretched for load and the VM (``Transport.timeout``); ``what`` may be a
+    callable, evaluated only for the failure message (to show the latest state).
+    """
     deadline = time.monotonic() + timeout_s
     error: Exception | None = None
     while True:
@@ -350,7 +369,8 @@ def wait_for(condition: Callable[[], Any], timeout_s: float, what: str) -> Any:
             error = exc
         if time.monotonic() > deadline:
             detail = f" (last error: {error})" if error else ""
-            pytest.fail(f"timed out after {timeout_s:.1f} s waiting for {what}{detail}")
+            described = what() if callable(what) else what
+            pytest.fail(f"timed out after {timeout_s:.1f} s waiting for {described}{detail}")
         time.sleep(POLL_S)
 
 
@@ -428,12 +448,18 @@ class Mill:
         return self.client.status().model_dump(mode="json")
 
     def wait_state(self, state: str, timeout_s: float = 10.0) -> dict[str, Any]:
-        """Wait until the controller reports ``state``; return that status."""
-        return wait_for(
-            lambda: (s := self.status())["state"] == state and s,
-            self.timeout(timeout_s),
-            f"the controller to be {state}\n{self._tail()}",
-        )
+        """Wait until the controller reports ``state``; return that status (a failure names the last one seen)."""
+        last: dict[str, Any] = {}
+
+        def reached() -> dict[str, Any] | None:
+            last.update(self.status())
+            return dict(last) if last["state"] == state else None
+
+        def what() -> str:
+            seen = f"last seen {last.get('state')}, trip cause {last.get('trip_cause')!r}" if last else "no status yet"
+            return f"the controller to be {state} ({seen})\n{self._tail()}"
+
+        return wait_for(reached, self.timeout(timeout_s), what)
 
     def _tail(self) -> str:
         """The last lines of the service's and the node's output, for failure messages."""

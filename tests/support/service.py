@@ -24,10 +24,14 @@ import pytest
 
 from millctl.client import Client
 from millctl.config.loader import packaged_file
+from tests.support.pace import Deadline, stretched
 
 REPO = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 30.0
+"""A safety net for start-up, not a measurement; it stretches with load (tests.support.pace)."""
 STOP_TIMEOUT_S = 30.0
+UNBUFFERED = {**os.environ, "PYTHONUNBUFFERED": "1"}
+"""The environment of the processes started here: unbuffered, so a failure shows everything they printed."""
 
 
 def write_config(directory: Path, **service: object) -> Path:
@@ -63,15 +67,17 @@ class Service:
         return self.log.read_text(errors="replace")
 
     def stop(self, sig: int = signal.SIGTERM) -> int:
-        """Signal the service and wait for it (SIGKILL after the bound); return its exit code."""
+        """Signal the service and wait for it (SIGKILL after a bound that stretches with load); return its exit code."""
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
-        try:
-            return self.proc.wait(STOP_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-            pytest.fail(f"the service did not stop within {STOP_TIMEOUT_S} s:\n{self.output()[-2000:]}")
+        deadline = Deadline(STOP_TIMEOUT_S)
+        while (rc := self.proc.poll()) is None and not deadline.expired():
+            time.sleep(0.05)
+        if rc is not None:
+            return rc
+        self.proc.kill()
+        self.proc.wait()
+        pytest.fail(f"the service did not stop within {deadline.describe()}:\n{self.output()[-2000:]}")
 
 
 def run_millctl(config: Path, *args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
@@ -81,7 +87,7 @@ def run_millctl(config: Path, *args: str, timeout_s: float = 60.0) -> subprocess
         cwd=REPO,
         capture_output=True,
         text=True,
-        timeout=timeout_s,
+        timeout=stretched(timeout_s),
         check=False,
     )
 
@@ -103,19 +109,27 @@ def start_service(
             stdin=subprocess.DEVNULL,
             stdout=out,
             stderr=subprocess.STDOUT,
+            env=UNBUFFERED,
         )
     service = Service(proc, config, directory / "mill.sock", directory / "records", log)
-    deadline = time.monotonic() + START_TIMEOUT_S
-    while time.monotonic() < deadline:
+    deadline = Deadline(START_TIMEOUT_S)
+    last = "no socket yet"
+    while not deadline.expired():
         if proc.poll() is not None:
             pytest.fail(f"{what} exited with {proc.returncode}:\n{service.output()}")
         if service.socket.exists():
-            with contextlib.suppress(Exception), service.client() as client:
-                if not wait_for_node or client.status().state == "DISABLED":
+            try:
+                with service.client() as client:
+                    state = client.status().state
+            except Exception as exc:  # not answering yet: keep the reason for the message
+                last = f"status request failed: {exc}"
+            else:
+                if not wait_for_node or state == "DISABLED":
                     return service
+                last = f"controller state {state}"
         time.sleep(0.1)
     service.stop(signal.SIGKILL)
-    pytest.fail(f"{what} did not come up within {START_TIMEOUT_S} s:\n{service.output()}")
+    pytest.fail(f"{what} did not come up within {deadline.describe()} (last: {last}):\n{service.output()}")
 
 
 @contextlib.contextmanager
@@ -142,10 +156,10 @@ def service() -> Iterator[Service]:
 
 
 def wait_for(condition: object, timeout_s: float = 10.0, what: str = "condition") -> None:
-    """Poll ``condition()`` until true; fail after ``timeout_s`` (a safety net, not a timing assertion)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    """Poll ``condition()`` until true; fail after ``timeout_s`` (a safety net that stretches with load)."""
+    deadline = Deadline(timeout_s)
+    while not deadline.expired():
         if condition():  # type: ignore[operator]
             return
         time.sleep(0.05)
-    pytest.fail(f"timed out waiting for {what}")
+    pytest.fail(f"timed out after {deadline.describe()} waiting for {what}")

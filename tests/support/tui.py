@@ -7,7 +7,6 @@ the interpreter lock, and the node's 250 ms watchdog is not meant for that.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import pytest
 from textual.pilot import Pilot
 from textual.widgets import RichLog
 
+from tests.support.pace import Deadline
 from tests.support.service import (
     Service,
     private_dir,
@@ -49,9 +49,12 @@ def fault_service(service_dir: Path) -> Iterator[Service]:
 
 
 async def until(pilot: Pilot[None], condition: Callable[[], bool], what: str, timeout_s: float = 15.0) -> None:
-    """Let the app run until ``condition()`` holds; fail after ``timeout_s`` (a bound, not a timing assertion)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    """Let the app run until ``condition()`` holds; fail after ``timeout_s`` (a bound, not a timing assertion).
+
+    ``timeout_s`` is for an idle machine; it stretches with load (:class:`tests.support.pace.Deadline`).
+    """
+    deadline = Deadline(timeout_s)
+    while not deadline.expired():
         if condition():
             return
         await pilot.pause(0.05)
@@ -60,4 +63,6 @@ async def until(pilot: Pilot[None], condition: Callable[[], bool], what: str, ti
     shown = f"state {status.get('state')} {status.get('trip_cause') or ''}, online {getattr(app, 'online', None)}"
     log = app.query("#events").results(RichLog)
     recent = [strip.text for widget in log for strip in widget.lines][-6:]
-    pytest.fail(f"timed out waiting for {what} (the TUI shows {shown}; its last events: {recent})")
+    pytest.fail(
+        f"timed out after {deadline.describe()} waiting for {what} (the TUI shows {shown}; its last events: {recent})"
+    )

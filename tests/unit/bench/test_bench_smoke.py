@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import pytest
 
@@ -138,6 +139,20 @@ def test_levels_and_node_budget_structure() -> None:
     res = {"command": "t", "quick": True, "duration_s": 1.0, "machine": _machine(), "levels": lv, "node_budget": nb}
     text = report.render(res)
     assert "## 2. Levels of detail" in text and "### Node tick budget" in text
+    # The figures measured above are the ones printed (read back from the text, to 3 significant digits).
+    i = lv["interlock"]
+    assert i["vector_s_per_point"] * i["points"] == pytest.approx(i["vector_s_total"], rel=1e-9)
+    printed_speedup = re.search(r"Vectorised interlock vs scalar: \*\*([0-9.e+-]+)×\*\*", text)
+    assert printed_speedup is not None
+    assert float(printed_speedup[1]) == pytest.approx(i["speedup_vector_vs_scalar"], rel=5e-3)
+    printed_scalar_us = re.search(r"scalar, per point \| ([0-9.e+-]+) µs \| 1 \|", text)
+    assert printed_scalar_us is not None
+    assert float(printed_scalar_us[1]) == pytest.approx(i["scalar_s_per_point"] * 1e6, rel=5e-3)
+    for worker in ("thread", "inline"):
+        row = re.search(rf"^\| {worker} \| (\d+) \| ([0-9.e+-]+) ms \|", text, re.MULTILINE)
+        assert row is not None, f"no node-budget row for the {worker} worker"
+        assert int(row[1]) == run["ticks"]
+        assert float(row[2]) == pytest.approx(run["tick_mean_s"] * 1e3, rel=5e-3)
 
 
 def test_cli_renders_a_saved_results_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]

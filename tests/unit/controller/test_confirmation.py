@@ -150,3 +150,24 @@ def test_every_escalation_is_recorded(bench):
               vibration_rpm=400.0)
     trips = [e for e in bench.events if e.kind is EventKind.TRIP]
     assert trips and trips[0].message.startswith("E-stop:")
+
+
+def test_a_reset_forgets_the_debounce_counts(config):
+    """After reset, a trip needs the full debounce count again (kills the reset mutants of both monitors)."""
+    from millctl.controller.expect import SpeedExpectation
+    from millctl.controller.monitor import MeasuredSpeedMonitor
+    from millctl.safety import STANDSTILL, Envelope, RampPlanner
+
+    envelope = Envelope.from_config(config)
+    n = config.interlock.debounce_samples
+    monitor = MeasuredSpeedMonitor(envelope, n)
+    expectation = SpeedExpectation(RampPlanner(envelope), 3.0, 2.0, n)
+    expectation.commanded(0.0, STANDSTILL)
+    for _ in range(n - 1):
+        assert monitor.update(260.0, 800.0) is None
+        assert expectation.check(0.0, 50.0, 0.0) is None
+    monitor.reset()
+    expectation.reset()
+    assert monitor.outside_in_a_row == 0 and expectation.outside_in_a_row == 0
+    assert monitor.update(260.0, 800.0) is None  # one outside sample after the reset does not trip
+    assert expectation.check(0.0, 50.0, 0.0) is None

@@ -55,7 +55,9 @@ def test_over_limit_setpoint_refused_and_nothing_sent(bench):
     with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm"):
         bench.controller.set_speeds(250.0, 800.0)
     bench.run(0.5, state=NodeState.ARMED)
-    assert all(d.message.rotary_rpm == 0.0 for _, d in bench.of(Setpoints))
+    sent = [d.message for _, d in bench.of(Setpoints)]
+    assert sent, "the controller sends its (standstill) setpoints while ARMED"
+    assert all(m.rotary_rpm == 0.0 and m.vibration_rpm == 0.0 for m in sent)
     assert any(e.kind is EventKind.REFUSAL and "250.0 rpm" in e.message for e in bench.events)
 
 

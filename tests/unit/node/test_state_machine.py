@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import can
 
 from millctl.protocol import (
@@ -126,8 +128,12 @@ def test_watchdog_trips_by_timeout_plus_one_tick_when_fed_no_more(bench: Bench) 
     fed_at = bench.clock.now()
     timeout_s = bench.config.timing.watchdog_timeout_s
     tick_s = bench.config.timing.node_tick_s
-    while bench.node.state is NodeState.ARMED:
+    ticks_allowed = math.ceil((timeout_s + tick_s) / tick_s) + 1  # bounded: a watchdog that never trips fails here
+    for _ in range(ticks_allowed):
+        if bench.node.state is not NodeState.ARMED:
+            break
         bench.step(tick_s, heartbeat=False, dt_s=tick_s)
+    assert bench.node.state is not NodeState.ARMED, f"still ARMED {ticks_allowed} ticks after the last heartbeat"
     assert bench.clock.now() - fed_at <= timeout_s + tick_s + 1e-9
     assert bench.clock.now() - fed_at > timeout_s - 1e-9
     assert bench.node.first_fault is FaultCode.WATCHDOG

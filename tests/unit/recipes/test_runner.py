@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from millctl.controller import CommandRefused
+from millctl.errors import InterlockError
 from millctl.protocol import SimFaultCode
 from millctl.recipes import load_recipe, plan_recipe
 from millctl.recipes.runner import RecipeRunner, RunState
@@ -116,5 +117,6 @@ def test_a_trip_mid_recipe_fails_the_run_with_its_cause(rig, tmp_path):
 def test_a_recipe_that_fails_preflight_cannot_start(rig, tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[recipe]\nname = "x"\n[[steps]]\nkind = "ramp"\nrotary_rpm = 250\nvibration_rpm = 800\n')
-    with pytest.raises(Exception, match="pre-flight"):
+    with pytest.raises(InterlockError, match=r"bad\.toml does not pass its pre-flight: .*250") as raised:
         runner_for(rig, bad, tmp_path)
+    assert type(raised.value) is InterlockError  # the recipe is refused, not some command on the way

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+import asyncio
 from pathlib import Path
 
 import httpx
@@ -74,7 +74,7 @@ async def test_commands_without_a_node_are_503(tmp_path: Path) -> None:
         transport = httpx.ASGITransport(app=create_app(runtime))
         async with httpx.AsyncClient(transport=transport, base_url="http://millctl") as http:
             taken = await http.post("/v1/control/take", headers={"X-Millctl-Client": "t"})
-            time.sleep(0.05)  # a few loop ticks: still no node on this channel
+            await asyncio.sleep(0.05)  # a few loop ticks (the loop keeps running): still no node on this channel
             response = await http.post("/v1/arm", headers={"X-Millctl-Lease": taken.json()["lease_id"]})
             assert response.status_code == 503
             assert response.json()["code"] == "node_unreachable"

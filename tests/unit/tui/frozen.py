@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 from typing import Any
 
-import numpy as np
+import httpx
 
 from millctl.api import ControlOut, EnvelopeOut, EventOut, RecipeOut, StatusOut
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
-from millctl.safety import Envelope
+from millctl.service import ServiceRuntime, create_app
 
 SOCKET = "/run/millctl/test.sock"
 T0_UNIX = 1_790_000_000.0
@@ -18,19 +19,24 @@ T0_UNIX = 1_790_000_000.0
 
 
 def envelope_answer(points: int = 161) -> EnvelopeOut:
-    """What ``GET /v1/envelope`` answers for the packaged config (Set A, paper eq. 9, margin 5 %)."""
-    env = Envelope.from_config(load_config(packaged_file("mill.toml")).config)
-    w_v = np.linspace(0.0, env.vibration_max_rpm, points)
-    limit, law, every = env.omega_r_limit_rpm(w_v), env.law_limit_rpm(w_v), env.every_cycle(w_v)
-    return EnvelopeOut.model_validate({
-        "law": env.law.value, "description": env.description, "margin": env.margin,
-        "rotary_max_rpm": env.rotary_max_rpm, "vibration_max_rpm": env.vibration_max_rpm,
-        "furnace_min_c": env.furnace_min_c, "furnace_max_c": env.furnace_max_c,
-        "max_heating_rate_c_per_min": env.max_heating_rate_c_per_min,
-        "points": [{"vibration_rpm": float(w_v[i]), "limit_rotary_rpm": float(limit[i]),
-                    "law_limit_rotary_rpm": float(law[i]), "law_is_every_cycle": bool(every[i])}
-                   for i in range(points)],
-    })
+    """What ``GET /v1/envelope`` answers for the packaged config (Set A, paper eq. 9, margin 5 %).
+
+    Asked of the service's own app, in-process and without a node, so the pictures show what the
+    service really sends (not a copy of its handler that could drift from it).
+    """
+    runtime = ServiceRuntime(load_config(packaged_file("mill.toml")), embed_node=False)
+
+    async def ask() -> httpx.Response:
+        transport = httpx.ASGITransport(app=create_app(runtime))
+        async with httpx.AsyncClient(transport=transport, base_url="http://millctl") as http:
+            return await http.get("/v1/envelope", params={"points": points})
+
+    try:
+        response = asyncio.run(ask())
+    finally:
+        runtime.close()
+    assert response.status_code == 200, response.text
+    return EnvelopeOut.model_validate(response.json())
 
 
 def link(age_s: float, frames: int, errors: int = 0) -> dict[str, Any]:

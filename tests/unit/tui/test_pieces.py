@@ -42,6 +42,10 @@ def test_setpoint_fields() -> None:
     assert (request.rotary_rpm, request.vibration_rpm, request.furnace) == (180.0, 800.0, False)
     assert parse_request("0", "0", "off").furnace and parse_request("0", "0", "off").temp_c is None
     assert parse_request("0", "0", "600").temp_c == 600.0
+    ramped = parse_request("180", "800", "", "12.5", "", linear=True)
+    assert (ramped.rotary_rate_rpm_s, ramped.vibration_rate_rpm_s, ramped.linear) == (12.5, None, True)
+    with pytest.raises(InputError, match="must be > 0"):
+        parse_request("180", "800", "", "0")
     for bad in (("x", "800", ""), ("180", "nan", ""), ("180", "800", "hot")):
         with pytest.raises(InputError):
             parse_request(*bad)

@@ -1,0 +1,173 @@
+"""How long a test may wait for a process: bounds that stretch with the machine's measured slowness.
+
+The tests hold two kinds of time bound, and only one of them may stretch:
+
+* **Physical bounds** (a watchdog, a trip's reaction time) come from the
+  config and the DBC and are what the test asserts. Load does not change them;
+  only the VM's measured emulation factor does (``scenario_support.bound_scale``).
+* **Process waits** (a service starting, a state being reached, a process
+  exiting) are safety nets sized for an idle machine. They are a
+  :class:`Deadline`: its clock runs at the share of a CPU a runnable process
+  gets right now, so on a machine where 8 runnable tasks share 2 CPUs a 30 s
+  wait lasts up to ~120 s, and on an idle one exactly 30 s. Everything is
+  multiplied by :func:`time_scale` (``MILLCTL_TIME_SCALE``: the VM's emulation
+  slowdown, measured by ``tests/vm/run`` at boot).
+
+The CPU share is sampled at every check from ``/proc/loadavg``: the larger of
+the 1-minute load average and the tasks runnable at that instant (less the
+one reading it), per CPU. A wait stretches at most :data:`MAX_STRETCH` times,
+so a process that hangs still fails the test.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+MAX_STRETCH = 8.0
+"""The most a wait stretches under load (a hang must still fail, and before pytest-timeout does)."""
+
+
+def time_scale() -> float:
+    """The emulation factor every wait and the VM's bounds are multiplied by (``MILLCTL_TIME_SCALE``, default 1)."""
+    text = os.environ.get("MILLCTL_TIME_SCALE", "1")
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"MILLCTL_TIME_SCALE must be a number >= 1, got {text!r}") from None
+    if not value >= 1:
+        raise ValueError(f"MILLCTL_TIME_SCALE must be >= 1, got {value}")
+    return value
+
+
+def runnable_per_cpu() -> float:
+    """Tasks competing for each CPU now: max(1-min load average, runnable tasks less this one) / CPUs."""
+    fields = Path("/proc/loadavg").read_text().split()
+    load_1min = float(fields[0])
+    runnable_now = int(fields[3].split("/")[0]) - 1
+    return max(load_1min, runnable_now) / (os.cpu_count() or 1)
+
+
+def cpu_share() -> float:
+    """The share of a CPU a runnable process gets now (1 on an idle machine, at least 1/MAX_STRETCH)."""
+    return 1.0 / min(max(runnable_per_cpu(), 1.0), MAX_STRETCH)
+
+
+def stretched(seconds: float) -> float:
+    """``seconds`` (on an idle machine) as a wall-time bound for one blocking call: scaled and stretched by load now.
+
+    For calls that take a timeout (``Popen.wait``, ``bus.recv``); a polling loop uses :class:`Deadline`,
+    which also follows load that changes during the wait.
+    """
+    return seconds * time_scale() / cpu_share()
+
+
+class Deadline:
+    """A wait of ``seconds`` (on an idle machine) that stretches with load and with ``time_scale()``.
+
+    :meth:`expired` advances the deadline's clock by the wall time since the
+    last check times the CPU share measured now; it expires when that clock
+    reaches ``seconds × time_scale()``.
+    """
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds * time_scale()
+        self._credit_s = 0.0
+        self._started = self._checked = time.monotonic()
+
+    def expired(self) -> bool:
+        """True once the process waited for has had ``seconds`` of (scaled) CPU-share time."""
+        now = time.monotonic()
+        self._credit_s += (now - self._checked) * cpu_share()
+        self._checked = now
+        return self._credit_s >= self.seconds
+
+    @property
+    def waited_s(self) -> float:
+        """Wall time since the deadline was set (for messages)."""
+        return time.monotonic() - self._started
+
+    def describe(self) -> str:
+        """``"30.0 s (waited 74.2 s under load)"``, for failure messages."""
+        waited = self.waited_s
+        if waited > self.seconds * 1.05:
+            return f"{self.seconds:.1f} s (waited {waited:.1f} s: the bound stretches with load)"
+        return f"{self.seconds:.1f} s"
+
+    def remaining_s(self) -> float:
+        """A conservative wall-time remainder: the credit still due at the current CPU share."""
+        self.expired()
+        return max(self.seconds - self._credit_s, 0.0) / cpu_share()
+
+
+# --- calibration: how much slower this machine runs than another (the VM against its host) -----------------------
+
+
+def _workload() -> None:
+    """A fixed slice of what the hil processes do: interpreted arithmetic, small objects, pipe system calls."""
+    table: dict[int, float] = {}
+    acc = 0.0
+    for i in range(20_000):
+        acc += (i * 0.5) ** 0.5
+        table[i & 255] = acc
+    read_end, write_end = os.pipe()
+    try:
+        for _ in range(300):
+            os.write(write_end, b"12345678")  # a frame's worth through the kernel (no file system:
+            os.read(read_end, 8)  # the VM's root is 9p, where one stat costs a round trip to the host)
+    finally:
+        os.close(read_end)
+        os.close(write_end)
+
+
+def calibration_s(repeats: int = 7, clock: str = "wall") -> float:
+    """The fastest of ``repeats`` runs of the workload (s), timed by ``clock``: "wall" or "cpu" (this process).
+
+    The host's reference is CPU time (what the host's load cannot inflate); the VM's measurement is wall
+    time, which is what its waits are made of.
+    """
+    timer = time.process_time if clock == "cpu" else time.perf_counter
+    best = math.inf
+    for _ in range(repeats):
+        start = timer()
+        _workload()
+        best = min(best, timer() - start)
+    return best
+
+
+def slowdown_against(reference_s: float) -> float:
+    """This machine's speed now against a reference measurement elsewhere: ``calibration_s() / reference_s`` (≥ 1)."""
+    if not reference_s > 0:
+        raise ValueError(f"the calibration reference must be a positive time in s, got {reference_s}")
+    return max(calibration_s() / reference_s, 1.0)
+
+
+def main(argv: list[str]) -> int:
+    """``python -m tests.support.pace --reference`` (host) / ``--scale REF_S`` (VM): print the figure."""
+    if argv == ["--reference"]:
+        print(f"{calibration_s(clock='cpu'):.6f}")
+        return 0
+    if len(argv) == 2 and argv[0] == "--scale":
+        print(f"{slowdown_against(float(argv[1])):.2f}")
+        return 0
+    print("usage: python -m tests.support.pace --reference | --scale REFERENCE_S", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
+
+
+__all__ = [
+    "MAX_STRETCH",
+    "Deadline",
+    "calibration_s",
+    "cpu_share",
+    "runnable_per_cpu",
+    "slowdown_against",
+    "stretched",
+    "time_scale",
+]

@@ -1,0 +1,82 @@
+"""Process waits stretch with measured load; a hang still fails (tests/support/pace.py, issue 14)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.support import pace
+
+
+class FakeLoad:
+    """/proc/loadavg and the monotonic clock, as a test sets them."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, cpus: int = 2) -> None:
+        self.file = tmp_path / "loadavg"
+        self.now = 100.0
+        self.set(0.0, 1)
+        real_path = pace.Path
+        monkeypatch.setattr(pace, "Path", lambda p: self.file if p == "/proc/loadavg" else real_path(p))
+        monkeypatch.setattr(pace.os, "cpu_count", lambda: cpus)
+        monkeypatch.setattr(pace.time, "monotonic", lambda: self.now)
+        monkeypatch.delenv("MILLCTL_TIME_SCALE", raising=False)
+
+    def set(self, load_1min: float, runnable: int) -> None:
+        self.file.write_text(f"{load_1min:.2f} 0.50 0.40 {runnable}/300 4242\n")
+
+
+@pytest.fixture
+def load(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> FakeLoad:
+    return FakeLoad(monkeypatch, tmp_path)
+
+
+def test_an_idle_machine_gives_a_whole_cpu(load: FakeLoad) -> None:
+    load.set(0.3, 1)  # only the reader itself runs
+    assert pace.cpu_share() == 1.0
+    assert pace.stretched(30.0) == 30.0
+
+
+def test_eight_runnable_tasks_on_two_cpus_give_a_quarter(load: FakeLoad) -> None:
+    load.set(8.0, 3)
+    assert pace.cpu_share() == pytest.approx(0.25)
+    assert pace.stretched(30.0) == pytest.approx(120.0)
+
+
+def test_a_burst_counts_before_the_load_average_catches_up(load: FakeLoad) -> None:
+    load.set(0.5, 7)  # 6 others runnable now, on 2 CPUs
+    assert pace.cpu_share() == pytest.approx(1 / 3)
+
+
+def test_the_stretch_is_capped_so_a_hang_still_fails(load: FakeLoad) -> None:
+    load.set(500.0, 500)
+    assert pace.cpu_share() == pytest.approx(1 / pace.MAX_STRETCH)
+
+
+def test_a_deadline_runs_at_the_cpu_share_measured_at_each_check(load: FakeLoad) -> None:
+    deadline = pace.Deadline(10.0)
+    load.now += 6.0  # idle: 6 s count fully
+    assert not deadline.expired()
+    load.set(4.0, 1)  # 2 runnable per CPU: the next 6 s count as 3
+    load.now += 6.0
+    assert not deadline.expired()
+    load.now += 2.0  # 6 + 3 + 1 = 10
+    assert deadline.expired()
+    assert "waited 14.0 s" in deadline.describe()
+
+
+def test_the_vm_scale_multiplies_every_wait(load: FakeLoad, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MILLCTL_TIME_SCALE", "7.5")
+    assert pace.stretched(2.0) == 15.0
+    deadline = pace.Deadline(2.0)
+    load.now += 14.9
+    assert not deadline.expired()
+    load.now += 0.2
+    assert deadline.expired()
+
+
+@pytest.mark.parametrize("bad", ["0.5", "fast", "nan"])
+def test_a_bad_time_scale_is_refused_with_its_value(monkeypatch: pytest.MonkeyPatch, bad: str) -> None:
+    monkeypatch.setenv("MILLCTL_TIME_SCALE", bad)
+    with pytest.raises(ValueError, match="MILLCTL_TIME_SCALE must be"):
+        pace.time_scale()
