@@ -212,9 +212,18 @@ def test_a_study_without_a_results_file_writes_nothing(grid_file, config, tmp_pa
     assert len(result.rows) == 6 and written == [] and [p.name for p in tmp_path.iterdir()] == ["grid.toml"]
 
 
-@pytest.mark.parametrize("target", ["/dev/null", "."])
-def test_results_are_never_renamed_over_a_device_or_a_directory(target):
-    from pathlib import Path
+@pytest.mark.parametrize("kind", ["fifo", "directory"])
+def test_results_are_never_renamed_over_a_pipe_or_a_directory(tmp_path, kind):
+    # A pipe or a directory made here, never a shared device: a regression must not replace /dev/null.
+    import os
 
-    with pytest.raises(Exception, match="not a regular file"):
-        ResultsStore(Path(target), "x")
+    from millctl.errors import InvalidInputError
+
+    target = tmp_path / "results.parquet"
+    if kind == "fifo":
+        os.mkfifo(target)
+    else:
+        target.mkdir()
+    with pytest.raises(InvalidInputError, match="not a regular file"):
+        ResultsStore(target, "x")
+    assert target.exists() and not target.is_file()
