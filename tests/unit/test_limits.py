@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from hypothesis import given
@@ -33,21 +31,30 @@ def test_reference_point_set_a(p):
     assert rad_s_to_rpm(switch_omega_v_rad_s(p)) == pytest.approx(308.0, abs=0.5)
 
 
-@pytest.mark.parametrize("omega_v_rpm", [0.0, 150.0, 307.0, 500.0, 800.0, 900.0])
-def test_closed_forms_at_sample_points(p, omega_v_rpm):
-    m, k, r_d, r0, g = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.r0_m, G_M_S2
+# Independent oracle: ω_r,max in rad/s for Set A, computed once with mpmath at 40 digits from the raw
+# parameters (m = ρ·π·r_r²·L = 7832·π·0.006²·0.1 kg, g = 9.80665, k = 92 N/m, r_d = 1 mm, r0 = 18 mm),
+# never from millctl: printed eq. 9 √((mg + r_d(mω_v² − k))/(2 m r0)); the paper's every-cycle bound (the
+# smaller numerator of sin α = ±1 in eq. 8a, clipped at 0); the corrected every-phase √(g(1 − Γ)/r0) and
+# best-phase √(g(1 + Γ)/r0) with Γ = r_d ω_v²/g (docs/model.md).
+SET_A_LIMITS_RAD_S = {
+    # ω_v rpm: (printed eq. 9, paper every-cycle, corrected every-phase, corrected best-phase)
+    0.0: (15.606280276456491, 15.606280276456491, 23.341248657449517, 23.341248657449517),
+    150.0: (15.824344410196457, 15.824344410196457, 23.045739410973279, 23.633063127307276),
+    307.0: (16.500480940408749, 16.500480940408749, 22.077004201067089, 24.540449533043275),
+    500.0: (17.880445716312333, 15.003451265455453, 19.811743461783836, 26.403079342800968),
+    800.0: (20.94065740923165, 10.310322796017615, 12.446027139690074, 30.573259332558508),
+    900.0: (22.142630694986286, 7.3836166473036789, 7.1647518334148153, 32.222571420408968),
+}
+
+
+@pytest.mark.parametrize("omega_v_rpm", sorted(SET_A_LIMITS_RAD_S))
+def test_laws_match_independent_high_precision_values(p, omega_v_rpm):
     w = rpm_to_rad_s(omega_v_rpm)
-    printed = math.sqrt((m * g - (k - m * w * w) * r_d) / (2 * m * r0))
+    printed, every_cycle, every_phase, best_phase = SET_A_LIMITS_RAD_S[omega_v_rpm]
     assert omega_r_max(LimitLaw.PAPER_EQ9, p, w) == pytest.approx(printed, rel=1e-12)
-    worst = min(m * g - (k - m * w * w) * r_d, m * g + (k - m * w * w) * r_d)
-    assert omega_r_max(LimitLaw.PAPER_EVERY_CYCLE, p, w) == pytest.approx(
-        math.sqrt(max(worst, 0) / (2 * m * r0)), rel=1e-12
-    )
-    gamma = r_d * w * w / g
-    assert omega_r_max(LimitLaw.CORRECTED_EVERY_PHASE, p, w) == pytest.approx(
-        math.sqrt(max(g * (1 - gamma), 0) / r0), rel=1e-12
-    )
-    assert omega_r_max(LimitLaw.CORRECTED_BEST_PHASE, p, w) == pytest.approx(math.sqrt(g * (1 + gamma) / r0), rel=1e-12)
+    assert omega_r_max(LimitLaw.PAPER_EVERY_CYCLE, p, w) == pytest.approx(every_cycle, rel=1e-12)
+    assert omega_r_max(LimitLaw.CORRECTED_EVERY_PHASE, p, w) == pytest.approx(every_phase, rel=1e-12)
+    assert omega_r_max(LimitLaw.CORRECTED_BEST_PHASE, p, w) == pytest.approx(best_phase, rel=1e-12)
     # eq. 9 is eq. 8a at sin α = −1
     assert omega_r_max_eq8a(p, w, -1.0) == pytest.approx(printed, rel=1e-12)
 
