@@ -59,8 +59,10 @@ async def until(pilot: Pilot[None], condition: Callable[[], bool], what: str, ti
             return
         await pilot.pause(0.05)
     app = pilot.app
-    status = getattr(app, "status", {})
-    shown = f"state {status.get('state')} {status.get('trip_cause') or ''}, online {getattr(app, 'online', None)}"
+    status = getattr(app, "status", None)  # a typed StatusOut once the first status arrived
+    state = getattr(status, "state", None)
+    cause = getattr(status, "trip_cause", None) or ""
+    shown = f"state {state} {cause}, online {getattr(app, 'online', None)}"
     log = app.query("#events").results(RichLog)
     recent = [strip.text for widget in log for strip in widget.lines][-6:]
     pytest.fail(
