@@ -64,7 +64,7 @@ Capture = pytest.CaptureFixture[str]
 def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple[Mill, Probe, Adversary]]:
     """The mill RUNNING at ``LOW_RPM`` on ``transport``, its probe, and the adversary (skipped on virtual)."""
     if not transport.crosses_processes:
-        pytest.skip("the adversary is a bus node of its own: needs udp_multicast or socketcan")
+        pytest.skip("the adversary is a bus node of its own: python-can's virtual bus stays inside one process")
     with mill_on(transport, spawn, tmp_path) as started:
         assert started.probe is not None
         adversary = Adversary(started.config.bus, started.codec)
