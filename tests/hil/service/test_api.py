@@ -22,6 +22,7 @@ from millctl.client import AsyncClient, Client, ControlHeld, InterlockRefusal, R
 from millctl.errors import ExitCode, InterlockError, InvalidInputError
 from millctl.records import read_records
 from millctl.service.app import SETTLE_S
+from tests.support.pace import stretched
 from tests.support.service import Service, wait_for
 
 SYSTEM_PYTHON = "/usr/bin/python3"
@@ -172,7 +173,7 @@ def test_stream_sends_status_and_events(service: Service) -> None:
 
 def _probe(socket_path: Path, *prefix: str) -> str:
     command = [*prefix, SYSTEM_PYTHON, "-c", PROBE, str(socket_path)]
-    return subprocess.run(command, capture_output=True, text=True, timeout=30, check=False).stdout
+    return subprocess.run(command, capture_output=True, text=True, timeout=stretched(30.0), check=False).stdout
 
 
 def test_socket_is_0600_and_another_user_is_refused(service: Service) -> None:
