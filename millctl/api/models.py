@@ -123,6 +123,16 @@ class EnvelopePoint(Strict):
     limit_rotary_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
     law_limit_rotary_rpm: float | None = Field(description="the law's rotary limit without margin (rpm)")
     law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
+    laws_rotary_rpm: dict[str, float | None] = Field(
+        default_factory=dict, description="every limit law's rotary limit without margin, by law name (rpm)")
+
+
+class RegimeOut(Strict):
+    """Where the law in force is not the every-cycle detachment bound (millctl.safety.regime, docs/model.md#eq-9)."""
+
+    above_vibration_rpm: float = Field(description="from this vibration speed up (rpm; 0: everywhere)")
+    summary: str = Field(description="the warning in one short line")
+    message: str = Field(description="the warning in full: where, why, what it means")
 
 
 class EnvelopeOut(Strict):
@@ -137,6 +147,8 @@ class EnvelopeOut(Strict):
     furnace_max_c: float = Field(description="highest furnace target (°C)")
     max_heating_rate_c_per_min: float = Field(description="fastest heating ramp (°C/min)")
     points: list[EnvelopePoint]
+    regime: RegimeOut | None = Field(default=None, description="where the law is not the every-cycle bound; "
+                                     "null where it is over the whole drive range")
 
 
 class CheckRequest(Strict):
@@ -319,6 +331,7 @@ __all__ = [
     "RecipeProgress",
     "RecipeRunRequest",
     "Refusal",
+    "RegimeOut",
     "ServiceOut",
     "SetpointsRequest",
     "StatusOut",

@@ -22,7 +22,7 @@ def test_the_plot_marks_the_operating_point_and_colours_the_law() -> None:
     styles = {str(span.style) for span in inside.spans if span.start <= marker < span.end}
     assert "bold red" not in styles
     assert any(str(span.style) == "green" for span in inside.spans)
-    assert any(str(span.style) == "yellow" for span in inside.spans)  # eq. 9 above ω_v ≈ 315 rpm
+    assert any(str(span.style) == "yellow" for span in inside.spans)  # eq. 9 above ω_v = 307.8 rpm
 
     outside = render_plot(CURVE, 60, 12, point=(800.0, 240.0))
     marker = outside.plain.index("●")
