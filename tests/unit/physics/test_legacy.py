@@ -113,7 +113,7 @@ def test_rod_rod_energy_uses_the_held_partner_whichever_rod_of_the_pair_flies(
 
 
 @pytest.mark.parametrize("dt", [1e-4, 1e-5])
-def test_compiled_paper_scheme_is_the_numpy_one(set_a_corrected, dt):
+def test_compiled_paper_scheme_is_the_numpy_one(set_a_corrected: MillModel, dt: float) -> None:
     """``legacy-compiled`` (the like-for-like baseline, issue 17) gives ``legacy``'s answer on six-rod scenes."""
     for scene in random_scenes(set_a_corrected, 12, 5):
         numpy_event = first_impact(scene, "legacy", dt=dt)
@@ -127,7 +127,7 @@ def test_compiled_paper_scheme_is_the_numpy_one(set_a_corrected, dt):
         assert compiled.x_m == pytest.approx(numpy_event.x_m, abs=1e-12)
 
 
-def test_compiled_paper_scheme_rejects_a_bad_step(scenes):
+def test_compiled_paper_scheme_rejects_a_bad_step(scenes: list[Scene]) -> None:
     with pytest.raises(PhysicsInputError, match=r"dt = 0\.0 s"):
         first_impact(scenes[0], "legacy-compiled", dt=0.0)
     with pytest.raises(PhysicsInputError, match="needs a time step"):
