@@ -49,6 +49,7 @@ from tests.hil.scenario_support import (
     report_timing,
     wait_for,
 )
+from tests.support.pace import cpu_share
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -125,7 +126,11 @@ def test_estop_inside_a_flood_on_0x001_at_the_buss_maximum_rate(
     mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
     m, probe, adversary = mill
-    rate_hz = MAX_FRAME_RATE_HZ / bound_scale()  # in the VM, Python runs ~10x slower: so does the flood
+    # The bus's maximum rate as this machine can run it now: in the VM Python runs ~10x slower, and on a loaded
+    # host the node gets a share of a CPU. A flood the node's process cannot drain overflows its socket's receive
+    # buffer, and the kernel drops datagrams, the E-stop among them: an artefact of emulating CAN over UDP (on
+    # the wire, the E-stop wins arbitration). The E-stop's reaction bound stays physical.
+    rate_hz = MAX_FRAME_RATE_HZ / bound_scale() * cpu_share()
     flood = adversary.flood(raw_frame(0x001, bytes(8), dlc=8), rate_hz)
     time.sleep(m.timeout(1.0))
     measured_s = estop_reaction(m, probe, adversary)
