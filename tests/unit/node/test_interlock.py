@@ -80,6 +80,26 @@ def test_safety_12_a_fast_forger_cannot_walk_the_setpoint_faster_than_the_drives
     assert accepted[-1][1] >= 1.5 * accel * 0.9
 
 
+def test_safety_12_the_largest_single_step_is_the_burst(bench: Bench) -> None:
+    """From rest, one frame may step a drive by 1.5 × max accel × watchdog_timeout_s + 0.2 rpm, not 0.1 rpm more."""
+    bench.arm()
+    burst = 1.5 * bench.config.drives.vibration.max_accel_rpm_s * bench.config.timing.watchdog_timeout_s + 0.2
+    assert _refused(bench, Setpoints(0.0, round(burst + 0.1, 1), 25.0, False)) is RefusalCode.ACCEL_LIMIT
+    bench.send(Setpoints(0.0, round(burst, 1), 25.0, False))
+    bench.step(bench.tick_s)
+    assert bench.node.last_setpoint == Setpoints(0.0, round(burst, 1), 25.0, False)
+
+
+def test_a_heater_off_frame_is_not_judged_by_its_unused_furnace_setpoint(bench: Bench) -> None:
+    bench.arm()
+    unused_c = bench.config.furnace.max_setpoint_c + 100.0
+    bench.send(Setpoints(0.0, 10.0, unused_c, False))
+    bench.step(bench.tick_s)
+    assert bench.node.refused_setpoints == 0
+    assert bench.node.last_setpoint == Setpoints(0.0, 10.0, unused_c, False)
+    assert not bench.node.heater_on
+
+
 def test_safety_12_the_controllers_sampled_ramp_passes(bench: Bench) -> None:
     bench.run_at(180.0, 800.0)
     assert bench.node.refused_setpoints == 0
