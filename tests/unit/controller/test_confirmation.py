@@ -156,7 +156,7 @@ def test_a_reset_forgets_the_debounce_counts(config):
     """After reset, a trip needs the full debounce count again (kills the reset mutants of both monitors)."""
     from millctl.controller.expect import SpeedExpectation
     from millctl.controller.monitor import MeasuredSpeedMonitor
-    from millctl.safety import STANDSTILL, Envelope, RampPlanner
+    from millctl.safety import STANDSTILL, Envelope, RampPlanner, SpeedPoint
 
     envelope = Envelope.from_config(config)
     n = config.interlock.debounce_samples
@@ -171,3 +171,10 @@ def test_a_reset_forgets_the_debounce_counts(config):
     assert monitor.outside_in_a_row == 0 and expectation.outside_in_a_row == 0
     assert monitor.update(260.0, 800.0) is None  # one outside sample after the reset does not trip
     assert expectation.check(0.0, 50.0, 0.0) is None
+    # a drive at rest though commanded to turn counts a whole window from after the reset
+    expectation.commanded(10.0, SpeedPoint(0.0, 400.0))
+    expectation.commanded(12.5, SpeedPoint(0.0, 400.0))
+    expectation.check(12.5, 0.0, 0.0)
+    expectation.reset()
+    assert expectation.check(13.0, 0.0, 0.0) is None
+    assert expectation.check(15.0, 0.0, 0.0) is not None
