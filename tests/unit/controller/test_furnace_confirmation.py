@@ -81,7 +81,8 @@ def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench)
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
     bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0)
     assert bench.controller.state is S.TRIPPED
-    assert "did not take its furnace target" in bench.controller.trip_cause
+    cause = bench.controller.trip_cause
+    assert cause.startswith("node reports heater off, which is not") and "did not take its furnace target" in cause
 
 
 def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
@@ -112,7 +113,8 @@ def test_a_heater_commanded_off_in_part_of_the_window_bounds_only_from_above() -
     off = FurnaceTelemetry(25.0, 25.0, 0.0, False)
     assert expect.check(1.9, off) is None  # not commanded on for a whole window yet
     assert expect.check(1.9, FurnaceTelemetry(25.0, 50.0, 10.0, True)) is None
-    assert expect.check(1.9, FurnaceTelemetry(25.0, 50.2, 10.0, True)) is not None
+    reason = expect.check(1.9, FurnaceTelemetry(25.0, 50.2, 10.0, True))
+    assert reason is not None and "(heater off or on at up to 50.0 °C over the last 1.0 s" in reason
     expect.reset()
     for k in range(20, 31):
         expect.commanded(k * 0.1, 50.0)
