@@ -42,6 +42,18 @@ def test_safety_4_absolute_speed_and_temperature_limits(bench: Bench) -> None:
     assert bench.node.state is NodeState.ARMED
 
 
+def test_safety_4_a_rotor_over_its_drives_maximum_is_refused_speed_limit_where_the_law_allows_more(
+    make_bench, config: MillConfig
+) -> None:
+    """Where the drive's own maximum is below the law's limit, exceeding it is SPEED_LIMIT, not ENVELOPE."""
+    rotary = config.drives.rotary.model_copy(update={"max_speed_rpm": 150.0})
+    cfg = config.model_copy(update={"drives": config.drives.model_copy(update={"rotary": rotary})})
+    bench: Bench = make_bench(cfg)
+    assert float(bench.envelope.omega_r_limit_rpm(800.0)) == 150.0  # the law alone would allow ≈ 190 rpm
+    bench.run_at(140.0, 800.0)
+    assert _refused(bench, Setpoints(155.0, 800.0, 25.0, False)) is RefusalCode.SPEED_LIMIT
+
+
 def test_safety_12_a_raw_jump_is_refused_accel_limit(bench: Bench) -> None:
     bench.arm()
     target = Setpoints(180.0, 800.0, 25.0, False)
