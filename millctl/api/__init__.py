@@ -6,7 +6,7 @@ return them; the CLI and the TUI read them. Nothing here imports the
 controller, so every part of millctl may import it.
 """
 
-from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, StreamKind
+from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, SimFaultName, StreamKind
 from millctl.api.models import (
     BusReceiveOut,
     CheckOut,
@@ -18,9 +18,12 @@ from millctl.api.models import (
     ErrorBody,
     EventOut,
     EventsOut,
+    FaultRequest,
+    FaultsOut,
     FurnaceRequest,
     LeaseOut,
     LinkOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipePauseRequest,
     RecipeProgress,
@@ -52,9 +55,12 @@ __all__ = [
     "EventKind",
     "EventOut",
     "EventsOut",
+    "FaultRequest",
+    "FaultsOut",
     "FurnaceRequest",
     "LeaseOut",
     "LinkOut",
+    "RecipeCheckOut",
     "RecipeOut",
     "RecipePauseRequest",
     "RecipeProgress",
@@ -64,6 +70,7 @@ __all__ = [
     "RunState",
     "ServiceOut",
     "SetpointsRequest",
+    "SimFaultName",
     "StatusOut",
     "StreamKind",
     "Strict",
