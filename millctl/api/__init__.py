@@ -6,8 +6,17 @@ return them; the CLI and the TUI read them. Nothing here imports the
 controller, so every part of millctl may import it.
 """
 
-from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, SimFaultName, StreamKind
+from millctl.api.enums import (
+    BusCondition,
+    ControllerState,
+    ErrorCode,
+    EventKind,
+    RunState,
+    SimFaultName,
+    StreamKind,
+)
 from millctl.api.models import (
+    BusHealthOut,
     BusReceiveOut,
     CheckOut,
     CheckRequest,
@@ -42,6 +51,8 @@ API_VERSION = "v1"
 
 __all__ = [
     "API_VERSION",
+    "BusCondition",
+    "BusHealthOut",
     "BusReceiveOut",
     "CheckOut",
     "CheckRequest",
