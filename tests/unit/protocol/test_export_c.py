@@ -62,13 +62,12 @@ def test_export_writes_the_packers_and_refuses_to_overwrite(tmp_path: Path, caps
     for frame in ("heartbeat", "setpoints", "command", "node_status", "drive_telemetry", "furnace_telemetry"):
         assert f"int millbus_{frame}_pack(" in header and f"int millbus_{frame}_unpack(" in header
     assert "#define MILLBUS_NODE_STATUS_E2E_DATA_ID 0x4E00u" in (out / "millbus_e2e.h").read_text()
-    before = (out / "millbus.c").read_text()
     (out / "millbus.c").write_text("/* the firmware team's edits */")
     assert main(["bus", "export-c", str(out)]) == ExitCode.INVALID_INPUT
     assert "already there" in capsys.readouterr().err
     assert (out / "millbus.c").read_text() == "/* the firmware team's edits */", "nothing is overwritten"
     assert main(["bus", "export-c", "--force", str(out)]) == ExitCode.OK
-    assert (out / "millbus.c").read_text() == before
+    assert "int millbus_heartbeat_pack(" in (out / "millbus.c").read_text(), "--force writes the export again"
 
 
 def test_node_export_packs_only_what_the_node_sends(tmp_path: Path) -> None:
