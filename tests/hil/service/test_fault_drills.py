@@ -6,7 +6,7 @@ from millctl.api import ControllerState, EventKind, SimFaultName
 from tests.support.service import private_dir, start_service, wait_for, write_config
 
 
-def test_an_injected_vibration_stall_trips_and_is_recorded_as_a_drill():
+def test_an_injected_vibration_stall_trips_and_is_recorded_as_a_drill() -> None:
     with private_dir() as directory:
         config = write_config(directory)
         service = start_service(directory, module_args=["millctl", "--config", str(config), "serve",

@@ -9,7 +9,6 @@ cause and what to do → reset; and E-stop from inside a dialog.
 from __future__ import annotations
 
 import contextlib
-import time
 from typing import Any
 
 import pytest
@@ -20,6 +19,7 @@ from millctl.tui import MillApp
 from millctl.tui.drill import FaultDrillModal
 from millctl.tui.modals import ConfirmModal, SetpointsModal
 from millctl.tui.recipes import RecipePicker
+from tests.support.pace import Deadline
 from tests.support.tui import Service, until
 
 SIZE = (120, 40)
@@ -119,8 +119,8 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
         with fault_service.client() as client:
             assert [e.data["fault"] for e in client.events(limit=2000).events if e.kind == "drill"] == [
                 "VIB_STALL", "CLEAR"]
-        deadline = time.monotonic() + 30.0
-        while app.state != "DISABLED" and time.monotonic() < deadline:
+        deadline = Deadline(30.0)  # waits for processes: stretches with load
+        while app.state != "DISABLED" and not deadline.expired():
             # as an operator would: reset at standstill, and again if it was refused (the freed rotor can
             # read a rpm or two for a moment after the clear: "reset refused: drives not at standstill")
             await until(pilot, lambda: at_rest(status_of(fault_service)), "standstill after the clear", timeout_s=30.0)
