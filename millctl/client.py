@@ -31,7 +31,7 @@ import contextlib
 import functools
 import os
 import socket
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable, Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Generic, ParamSpec, TypeVar, overload
@@ -41,15 +41,19 @@ from httpx_sse import ServerSentEvent, aconnect_sse, connect_sse
 from pydantic import BaseModel
 
 from millctl.api import (
+    BusHealthOut,
     CheckOut,
     CommandOut,
     ControlOut,
     EnvelopeOut,
     EventOut,
     EventsOut,
+    FaultsOut,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
     ServiceOut,
+    SimFaultName,
     StatusOut,
     StreamKind,
 )
@@ -94,6 +98,16 @@ def describe_mill(service: ServiceOut) -> str:
     kind = "SIMULATED mill (embedded node)" if service.simulated else "real bus"
     return (f"mill {service.mill_name!r} on {service.bus_interface}:{service.bus_channel} ({kind}), "
             f"config {service.config_path}, socket {service.socket_path}")
+
+
+def describe_bus_health(health: BusHealthOut) -> str:
+    """One line of the CAN controller's condition and error counts (``millctl status``, the TUI, ``bus check``)."""
+    counters = "" if health.tx_error_counter is None else (
+        f"   TEC {health.tx_error_counter} REC {health.rx_error_counter}"
+    )
+    return (f"{health.condition}   error frames {health.error_frames} (bus {health.bus_errors}, no ACK "
+            f"{health.ack_errors}, controller {health.controller_errors})   error-passive "
+            f"{health.error_passive_count}×, bus-off {health.bus_off_count}×{counters}")
 
 
 def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
@@ -255,6 +269,22 @@ def _recipe_run_text(name: str, text: str) -> Request:
     return _post("/v1/recipe/run", {"name": name, "text": text})
 
 
+def _recipe_check(path: str | os.PathLike[str]) -> Request:
+    """Pre-flight a recipe file against the service's envelope: read here, sent by content; nothing starts."""
+    name, text = read_recipe_text(path)
+    return _post("/v1/recipe/check", {"name": name, "text": text})
+
+
+def _faults() -> Request:
+    """The faults injected into the simulated node (GET /v1/sim/faults; serve --fault-injection only)."""
+    return _get("/v1/sim/faults")
+
+
+def _inject_fault(fault: SimFaultName | str, active: bool = True, param: float = 0.0) -> Request:
+    """Inject (or clear) a simulated node fault for an operator drill (serve --fault-injection only)."""
+    return _post("/v1/sim/faults", {"fault": str(fault), "active": active, "param": param})
+
+
 def _recipe_pause(now: bool = False) -> Request:
     """Pause the run at the next step boundary, or now."""
     return _post("/v1/recipe/pause", {"now": now})
@@ -384,6 +414,9 @@ class Operations(_Base):
     recipe_resume = Operation(RecipeOut, _recipe_resume)
     recipe_abort = Operation(RecipeOut, _recipe_abort)
     recipe = Operation(RecipeOut, _recipe)
+    recipe_check = Operation(RecipeCheckOut, _recipe_check)
+    faults = Operation(FaultsOut, _faults)
+    inject_fault = Operation(FaultsOut, _inject_fault)
 
 
 class Client(Operations):
@@ -422,7 +455,7 @@ class Client(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 self.release_control()
 
-    def stream(self, count: int | None = None) -> Iterator[StreamItem]:
+    def stream(self, count: int | None = None) -> Generator[StreamItem, None, None]:
         """Live :class:`StatusOut` and :class:`EventOut` items (GET /v1/stream) until closed or ``count``.
 
         Resumes after :attr:`last_event_id` when set (a reconnection misses no event).
@@ -476,7 +509,7 @@ class AsyncClient(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 await self.release_control()
 
-    async def stream(self, count: int | None = None) -> AsyncIterator[StreamItem]:
+    async def stream(self, count: int | None = None) -> AsyncGenerator[StreamItem, None]:
         """Live status and event items, as :meth:`Client.stream` (resuming after :attr:`last_event_id`)."""
         try:
             async with aconnect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:
@@ -509,6 +542,7 @@ __all__ = [
     "ServiceUnavailable",
     "StreamItem",
     "default_socket_path",
+    "describe_bus_health",
     "describe_mill",
     "raise_for_error",
     "read_recipe_text",

@@ -48,6 +48,7 @@ from millctl.protocol import (
     default_codec,
 )
 from millctl.protocol import ControllerState as WireState
+from millctl.protocol.bus_health import BusCondition, BusHealthMonitor
 from millctl.safety import STANDSTILL, Envelope, InterlockRefused, RampPlanner, SpeedPoint, Trajectory
 from millctl.safety.commands import CONTROLLER_ALLOWS, Operation, node_change_commanded
 
@@ -97,6 +98,7 @@ class Controller:
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(self.codec, config.interlock)
         self.reader = BusReader(bus, "controller")
+        self.bus_health = BusHealthMonitor(bus, config.bus.interface)
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
         interlock = config.interlock
         self.confirmations = Confirmations(interlock)
@@ -397,6 +399,9 @@ class Controller:
     def _drain(self, now: float) -> None:
         """Read every frame waiting (SAFETY 22); bad input is counted by the reader, never raised (SAFETY 19)."""
         batch = self.reader.drain()
+        for error_frame in batch.error_frames:
+            self._on_bus_condition(self.bus_health.on_error_frame(error_frame))
+        self._on_bus_condition(self.bus_health.poll())
         # an E-stop from anyone is the node's to act on; it reports it in NodeStatus and we trip on that
         for frame in batch.frames:
             try:
@@ -413,6 +418,22 @@ class Controller:
                 self._on_measured(message)
             elif isinstance(message, FurnaceTelemetry):
                 self._on_furnace(message)
+
+    def _on_bus_condition(self, condition: BusCondition | None) -> None:
+        """A change of the CAN controller's condition: an event; bus-off trips (docs/protocol.md#bus-errors)."""
+        if condition is None:
+            return
+        health = self.bus_health.health
+        cause = health.last_error or health.state_source
+        self._emit(EventKind.BUS, "bus", f"CAN controller {condition}: {cause}", condition=condition.value,
+                   tx_error_counter=health.tx_error_counter, rx_error_counter=health.rx_error_counter)
+        if condition is BusCondition.BUS_OFF:
+            bus = self.config.bus
+            self._trip(
+                f"CAN bus-off on {bus.interface}:{bus.channel} ({cause}): the controller cannot send, the node's "
+                "watchdog stops the mill; check wiring, termination and bitrate (docs/protocol.md#bus-errors)",
+                "bus",
+            )
 
     @property
     def invalid_frames(self) -> int:

@@ -13,7 +13,8 @@ from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import Sparkline, Static
 
-from millctl.api import ControlOut, EnvelopeOut, RecipeOut, StatusOut
+from millctl.api import BusCondition, ControlOut, EnvelopeOut, RecipeOut, StatusOut
+from millctl.client import describe_bus_health
 from millctl.tui.format import duration, e2e_errors, num, state_style
 from millctl.tui.plot import Curve, render_plot
 
@@ -175,27 +176,35 @@ class PhysicsPanel(Static):
         ))
 
 
+def link_text(status: StatusOut) -> Text:
+    """The link panel's text: per frame kind age, E2E errors and score; invalid frames; the CAN bus when unwell."""
+    text = Text()
+    for name, link in sorted(status.link.items()):
+        age, bound = link.age_s, link.stale_after_s or 1.0
+        dead = age is None or age > DEAD_FACTOR * bound
+        style = "bold red" if dead else ("dim" if link.stale else "")
+        errors = e2e_errors(link.e2e)
+        flag = " DEAD" if dead else (" STALE" if link.stale else "")
+        score = link.e2e_score
+        short = name.removesuffix("Telemetry")
+        line = f"{short[:10]:<10} {num(age, '.2f', ' s'):>8}  e2e err {errors} score {score}{flag}\n"
+        text.append(line, style=style)
+    invalid = status.invalid_frames
+    text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
+    if receive_errors := status.receive_errors:
+        text.append(f"  receive errors {receive_errors}", style="red")
+    health = status.bus_health
+    if health.condition is not BusCondition.ERROR_ACTIVE or health.error_frames:
+        text.append(f"\nCAN {describe_bus_health(health)}", style="bold red")
+    return text
+
+
 class LinkPanel(Static):
     """Node link health per frame kind: age, E2E errors and score; dim when stale, red when dead."""
 
     def show(self, status: StatusOut) -> None:
         """Update from a status."""
-        text = Text()
-        for name, link in sorted(status.link.items()):
-            age, bound = link.age_s, link.stale_after_s or 1.0
-            dead = age is None or age > DEAD_FACTOR * bound
-            style = "bold red" if dead else ("dim" if link.stale else "")
-            errors = e2e_errors(link.e2e)
-            flag = " DEAD" if dead else (" STALE" if link.stale else "")
-            score = link.e2e_score
-            short = name.removesuffix("Telemetry")
-            line = f"{short[:10]:<10} {num(age, '.2f', ' s'):>8}  e2e err {errors} score {score}{flag}\n"
-            text.append(line, style=style)
-        invalid = status.invalid_frames
-        text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
-        if receive_errors := status.receive_errors:
-            text.append(f"  receive errors {receive_errors}", style="red")
-        self.update(text, layout=False)
+        self.update(link_text(status), layout=False)
 
 
 class StatePanel(Static):
