@@ -7,10 +7,11 @@ possible.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused, Controller, ControllerState, Event, EventKind
 from millctl.protocol import Command, CommandCode, NodeState
 from millctl.safety import InterlockRefused
@@ -21,7 +22,7 @@ WHO = "api:alice"
 
 
 @pytest.fixture
-def bench(config):
+def bench(config: MillConfig) -> Iterator[ScriptedNode]:
     b = ScriptedNode(config)
     yield b
     b.close()
@@ -38,7 +39,7 @@ def last(events: list[Event], kind: EventKind) -> Event:
     return [e for e in events if e.kind is kind][-1]
 
 
-def test_arm_disarm_and_stop_are_recorded_with_their_source_and_sent(bench):
+def test_arm_disarm_and_stop_are_recorded_with_their_source_and_sent(bench: ScriptedNode) -> None:
     armed(bench)
     assert last(bench.events, EventKind.COMMAND).source == WHO
     bench.controller.disarm(source=WHO)
@@ -49,7 +50,7 @@ def test_arm_disarm_and_stop_are_recorded_with_their_source_and_sent(bench):
     assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.DISARM)) == 1
 
 
-def test_furnace_commands_are_recorded_with_their_source(bench):
+def test_furnace_commands_are_recorded_with_their_source(bench: ScriptedNode) -> None:
     armed(bench)
     bench.controller.set_furnace(60.0, source=WHO)
     event = last(bench.events, EventKind.COMMAND)
@@ -70,7 +71,9 @@ REFUSED_IN_DISABLED: dict[str, Callable[[Controller], object]] = {
 
 
 @pytest.mark.parametrize("what", list(REFUSED_IN_DISABLED))
-def test_a_command_refused_in_the_wrong_state_names_it_and_the_state_and_is_recorded(bench, what):
+def test_a_command_refused_in_the_wrong_state_names_it_and_the_state_and_is_recorded(
+    bench: ScriptedNode, what: str
+) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     with pytest.raises(CommandRefused, match=f"^{what} is not possible in state DISABLED \\(possible in "):
         REFUSED_IN_DISABLED[what](bench.controller)
@@ -79,13 +82,13 @@ def test_a_command_refused_in_the_wrong_state_names_it_and_the_state_and_is_reco
     assert bench.of(Command) == []
 
 
-def test_arm_refused_when_armed_names_it(bench):
+def test_arm_refused_when_armed_names_it(bench: ScriptedNode) -> None:
     armed(bench)
     with pytest.raises(CommandRefused, match=r"^arm is not possible in state ARMED"):
         bench.controller.arm(source=WHO)
 
 
-def test_disarm_after_a_finished_ramp_to_a_speed_is_refused_and_recorded(bench):
+def test_disarm_after_a_finished_ramp_to_a_speed_is_refused_and_recorded(bench: ScriptedNode) -> None:
     armed(bench)
     move = bench.controller.set_speeds(0.0, 1.0)
     bench.run(move.duration_s + 0.1, state=NodeState.ARMED, vibration_rpm=1.0)
@@ -97,7 +100,9 @@ def test_disarm_after_a_finished_ramp_to_a_speed_is_refused_and_recorded(bench):
     assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.DISARM)) == 0
 
 
-def test_a_refused_furnace_target_or_heating_rate_is_recorded_and_names_the_limit(bench, config):
+def test_a_refused_furnace_target_or_heating_rate_is_recorded_and_names_the_limit(
+    bench: ScriptedNode, config: MillConfig
+) -> None:
     armed(bench)
     too_hot = config.furnace.max_setpoint_c + 50.0
     with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused by the interlock: "):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -43,7 +45,7 @@ def test_safety_4_absolute_speed_and_temperature_limits(bench: Bench) -> None:
 
 
 def test_safety_4_a_rotor_over_its_drives_maximum_is_refused_speed_limit_where_the_law_allows_more(
-    make_bench, config: MillConfig
+    make_bench: Callable[..., Bench], config: MillConfig
 ) -> None:
     """Where the drive's own maximum is below the law's limit, exceeding it is SPEED_LIMIT, not ENVELOPE."""
     rotary = config.drives.rotary.model_copy(update={"max_speed_rpm": 150.0})
