@@ -50,6 +50,7 @@ def test_an_arm_the_node_never_confirms_is_repeated_then_trips_naming_it(
     bench.run(0.1, state=NodeState.DISABLED)
     assert bench.controller.state is S.TRIPPED
     assert "ARM" in bench.controller.trip_cause and "not confirmed" in bench.controller.trip_cause
+    assert f"after {sent_commands(bench, CommandCode.ARM)} send(s)" in bench.controller.trip_cause
 
 
 def test_a_confirmed_command_is_not_repeated(bench: ScriptedNode) -> None:
