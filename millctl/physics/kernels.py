@@ -691,7 +691,7 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: igno
                 phasor[r, 0], phasor[r, 1] = math.cos(x), math.sin(x)
             else:
                 phasor[r, 0], phasor[r, 1] = _turned(phasor[r, 0], phasor[r, 1], cos_step_v, sin_step_v)
-        best, best_k = math.inf, -1
+        best, best_k, best_exact = math.inf, -1, False
         for k in range(count):
             if t_next <= safe_until[k] and t_k < t_end:
                 stale[k] = 1.0  # provably apart up to the next sample: not evaluated
@@ -728,6 +728,14 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: igno
                 hit = s <= 0.0 or abs(s) < near or (ds_prev[k] < 0.0 < ds and min(s_prev[k], s) <= margin)
                 if hit and t_k > t_prev:
                     t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, tol)
+                    if tol > 0.0 and best_k >= 0 and abs(t_hit - best) <= 2.0 * tol:
+                        # two contacts closer than the tolerance: which is first is decided at full precision
+                        t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, 0.0)
+                        if not best_exact:
+                            best = _resolve(p, st, tr, pi[best_k], pj[best_k], t_prev, t_k, 0.0)
+                            best_exact = True
+                    elif t_hit < best:
+                        best_exact = False
                     if t_hit < best:
                         best, best_k = t_hit, k
             s_prev[k], ds_prev[k], v2_prev[k] = s, ds, v2
