@@ -96,6 +96,8 @@ class ServiceRuntime:
         self.socket_path = ""
         """The socket the API is served on (set by :func:`millctl.service.serve`)."""
         self.records_warning: str | None = None
+        self.bus_warnings: list[str] = []
+        """What is wrong with the CAN link as the service started (socketcan: its bitrate, its state)."""
         """Why records cannot be written now (None while they can): shown in the status."""
         self.records = RecordQueue(on_change=self._records_changed)
         self.journal = Journal(self.records_dir, rotate_bytes=service.rotate_bytes, keep_files=service.keep_files,
@@ -141,6 +143,11 @@ class ServiceRuntime:
             bus_channel=self.config.bus.channel,
             embedded_node=self.node is not None,
         )
+        from millctl.protocol.bus_check import startup_link_problems
+
+        self.bus_warnings = startup_link_problems(self.config.bus)
+        for problem in self.bus_warnings:
+            self.journal.add(EventKind.BUS, "service", problem)
         self._thread.start()
 
     def wait_for_node(self, timeout_s: float) -> bool:
@@ -267,10 +274,11 @@ class ServiceRuntime:
         )
 
     def warnings(self) -> list[str]:
-        """What the operator must know about the service itself (records that cannot be written)."""
+        """What the operator must know about the service itself (its CAN link, records that cannot be written)."""
         if self.records_warning is None:
-            return []
-        return [f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
+            return list(self.bus_warnings)
+        return [*self.bus_warnings,
+                f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
                 f"records dir {self.records_dir}); the mill is controlled as before"]
 
     def _records_changed(self, failing: str | None) -> None:
