@@ -202,6 +202,8 @@ class RecipeRunner:
         if self.index < len(self.steps) and isinstance(self.steps[self.index], RampStep):
             self._step_begun = False  # re-issue the ramp from where the mill is now
             self._step_elapsed_s = 0.0
+        if self._restore is not None:  # paused on the way back to the step's setpoints: on again from here
+            self._restore.begin(self.controller, source)
         self._enter(RunState.RUNNING, f"resumed by {source}")
         self._write("resume", source=source, step=self.index + 1)
         if self._begun_index != self.index:
@@ -242,7 +244,8 @@ class RecipeRunner:
         self.state, self.reason = state, reason
 
     def _freeze(self) -> None:
-        self._step_elapsed_s += self.clock.now() - self._step_started_s
+        if self._restore is None:  # a restore's time is not the step's
+            self._step_elapsed_s += self.clock.now() - self._step_started_s
         commanded = self.controller.commanded
         if self.controller.trajectory is not None and self.controller.state in (S.ARMED, S.RUNNING):
             self.controller.set_speeds(commanded.omega_r_rpm, commanded.omega_v_rpm, source=self.source)

@@ -326,7 +326,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         prepared = rt.recipe.prepare_resume(run_id, body.text, rt.loaded.sha256, rt.config)  # the disk: not the loop
         shown = unfinished_out(prepared.history)
         if not body.confirm:
-            check = rt.call(lambda c: rt.recipe.check_out(rt.recipe.check_resume(prepared)))
+            check = rt.call(lambda c: rt.recipe.check_out(rt.recipe.check_resume(prepared)), needs_node=False)
             return RecipeResumeOut(run=shown, check=check, started=False, recipe=None)
         lock = RunLock.acquire(prepared.history.path)  # one resume at a time, across services too
         try:
@@ -337,7 +337,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
                 rt.recipe.resume_run(prepared, lock, torn, holder)
                 return RecipeResumeOut(run=shown, check=check, started=True, recipe=rt.recipe.recipe_out())
 
-            return rt.call(start)
+            return rt.call(start, needs_node=False)  # the check names a missing node with the other problems
         except BaseException:
             lock.release()
             raise

@@ -170,16 +170,19 @@ class RecipeSlot:
                 if history is not None and not is_live(Path(entry.path)):
                     found.append(history)
             self._scanned = seen
-        return found
+        mine = self.runner  # this service's own run, live or ended, is never offered: it knows its state best
+        return [h for h in found if mine is None or h.run_id != mine.run_id or mine.state is RunState.INTERRUPTED]
 
     def prepare_resume(self, run_id: str, text: str | None, config_sha256: str, config: MillConfig) -> PreparedResume:
         """Read the run's record, check its recipe and configuration are unchanged, and plan (request thread)."""
         history = read_history(record_path(self.records_dir, run_id))
         if history.ended is not None:
             raise RunNotResumable(f"run {run_id} {history.reason}: only an interrupted run can be resumed")
-        if self.runner is not None and self.runner.run_id == run_id and not self.runner.finished:
-            raise RunNotResumable(f"run {run_id} is {self.runner.state} in this service: `millctl recipe resume` "
-                                  "without a run id continues a paused run")
+        mine = self.runner
+        if mine is not None and mine.run_id == run_id and mine.state is not RunState.INTERRUPTED:
+            hint = ("" if mine.finished else
+                    ": `millctl recipe resume` without a run id continues a paused run")
+            raise RunNotResumable(f"run {run_id} is {mine.state} in this service{hint}")
         if text is None:
             text = history.recipe_text
             if text is None:

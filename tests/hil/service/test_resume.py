@@ -38,7 +38,7 @@ def start_in_the_hold(directory: Path, hold_s: float) -> tuple[Service, str, Pat
 def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_done():
     with private_dir() as directory:
         fast_mill(directory)
-        first, run_id, record = start_in_the_hold(directory, hold_s=6.0)
+        first, run_id, record = start_in_the_hold(directory, hold_s=20.0)  # long enough to try a second resume
         assert first.stop(signal.SIGKILL) == -signal.SIGKILL
         done_before = read_history(record).step_elapsed_s
         assert 1.0 <= done_before <= 4.0
@@ -49,6 +49,8 @@ def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_don
                 described = client.service()
                 assert described.unfinished_runs == [run_id]
                 assert any(f"millctl recipe resume {run_id}" in w for w in described.warnings)
+                assert any(e.message.startswith(f"unfinished run {run_id} (short, step 2/2)")
+                           for e in client.events().events)  # found at start, in the journal
             listed = run_millctl(running.config, "recipe", "list", "--json")
             assert listed.returncode == 0, listed.stderr
             [offered] = json.loads(listed.stdout)["result"]["runs"]
@@ -60,7 +62,7 @@ def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_don
             assert unconfirmed.returncode == 2 and "confirm with --yes" in unconfirmed.stderr
             assert "then step 2 (hold) continues with" in unconfirmed.stderr
             # a changed recipe is refused
-            changed = recipe(directory, hold_s=7.0)
+            changed = recipe(directory, hold_s=21.0)
             refused = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes", "--recipe", str(changed))
             assert refused.returncode == 2 and "the recipe changed" in refused.stderr
             with running.client() as client:

@@ -272,3 +272,25 @@ def test_a_ramp_lost_mid_way_runs_again_from_standstill_to_its_target(config, tm
     resumed = next(r for r in records if r["event"] == "step_start" and r.get("resumed"))
     assert resumed["step"] == 1 and resumed["credited_s"] == 0.0
     assert [r["step"] for r in records if r["event"] == "step_end"] == [1, 2, 3]
+
+
+def test_a_pause_during_the_restore_credits_nothing_and_the_restore_goes_on_after(config, tmp_path):
+    text = recipe_text(hold_s=10.0)
+    path = interrupt_in_the_hold(config, tmp_path, text, done_s=4.0)
+    credited = read_history(path).step_elapsed_s
+    rig, runner = resume_on_a_fresh_mill(config, path, text)
+    try:
+        drive(rig, runner, 10.0, until=lambda: runner._restore is not None)
+        drive(rig, runner, 0.5)
+        runner.pause(now=True)
+        drive(rig, runner, 3.0)
+        assert runner.progress()["step_elapsed_s"] == credited  # paused on the way back: the hold's clock stood
+        runner.resume()
+        drive(rig, runner, 240.0)
+        assert runner.state is RunState.DONE, runner.reason
+    finally:
+        rig.close()
+    records = list(read_records(path))
+    restored = next(r for r in records if r["event"] == "restored")
+    hold_end = next(r for r in records if r["event"] == "step_end" and r["step"] == 2 and r["t"] >= restored["t"])
+    assert hold_end["clock_s"] - restored["clock_s"] == pytest.approx(10.0 - credited, abs=0.05)
