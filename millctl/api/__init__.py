@@ -6,8 +6,9 @@ return them; the CLI and the TUI read them. Nothing here imports the
 controller, so every part of millctl may import it.
 """
 
-from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, StreamKind
+from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, StreamKind
 from millctl.api.models import (
+    BusHealthOut,
     BusReceiveOut,
     CheckOut,
     CheckRequest,
@@ -28,6 +29,7 @@ from millctl.api.models import (
     RecipeResumeRequest,
     RecipeRunRequest,
     Refusal,
+    RegimeOut,
     ResumeCheckOut,
     RunGapOut,
     ServiceOut,
@@ -44,6 +46,8 @@ API_VERSION = "v1"
 
 __all__ = [
     "API_VERSION",
+    "BusCondition",
+    "BusHealthOut",
     "BusReceiveOut",
     "CheckOut",
     "CheckRequest",
@@ -67,6 +71,7 @@ __all__ = [
     "RecipeResumeRequest",
     "RecipeRunRequest",
     "Refusal",
+    "RegimeOut",
     "ResumeCheckOut",
     "RunGapOut",
     "RunState",

@@ -80,6 +80,8 @@ class Batch:
 
     estop: bool
     frames: list[can.Message] = field(default_factory=list)
+    error_frames: list[can.Message] = field(default_factory=list)
+    """CAN error frames of this drain, for :class:`millctl.protocol.bus_health.BusHealthMonitor`."""
 
 
 class BusReader:
@@ -108,6 +110,7 @@ class BusReader:
         """Read every frame waiting (bounded by ``max_frames``); never raises for anything the bus delivers."""
         counts = self.counts
         frames: list[can.Message] = []
+        error_frames: list[can.Message] = []
         estop = False
         errors_in_a_row = 0
         for _ in range(self.max_frames):
@@ -122,20 +125,21 @@ class BusReader:
                 continue
             errors_in_a_row = 0
             if frame is None:
-                return Batch(estop, frames)
+                return Batch(estop, frames, error_frames)
             counts.frames += 1
             if is_estop(frame):
                 counts.estops += 1
                 estop = True
             elif frame.is_error_frame:
                 counts.error_frames += 1
+                error_frames.append(frame)
                 self._note("error frame", counts.error_frames, repr(frame))
             else:
                 frames.append(frame)
         else:
             counts.capped_drains += 1
             self._note("drain stopped at its bound", counts.capped_drains, f"{self.max_frames} reads in one tick")
-        return Batch(estop, frames)
+        return Batch(estop, frames, error_frames)
 
     def malformed(self, frame: can.Message, reason: object) -> None:
         """Count (and log, bounded) a frame that does not fit the DBC; the caller drops it."""
