@@ -31,7 +31,7 @@ import contextlib
 import functools
 import os
 import socket
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable, Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Generic, ParamSpec, TypeVar, overload
@@ -455,7 +455,7 @@ class Client(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 self.release_control()
 
-    def stream(self, count: int | None = None) -> Iterator[StreamItem]:
+    def stream(self, count: int | None = None) -> Generator[StreamItem, None, None]:
         """Live :class:`StatusOut` and :class:`EventOut` items (GET /v1/stream) until closed or ``count``.
 
         Resumes after :attr:`last_event_id` when set (a reconnection misses no event).
@@ -509,7 +509,7 @@ class AsyncClient(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 await self.release_control()
 
-    async def stream(self, count: int | None = None) -> AsyncIterator[StreamItem]:
+    async def stream(self, count: int | None = None) -> AsyncGenerator[StreamItem, None]:
         """Live status and event items, as :meth:`Client.stream` (resuming after :attr:`last_event_id`)."""
         try:
             async with aconnect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:

@@ -96,6 +96,8 @@ class ServiceRuntime:
         self.socket_path = ""
         """The socket the API is served on (set by :func:`millctl.service.serve`)."""
         self.records_warning: str | None = None
+        self.bus_warnings: list[str] = []
+        """What is wrong with the CAN link as the service started (socketcan: its bitrate, its state)."""
         """Why records cannot be written now (None while they can): shown in the status."""
         self.records = RecordQueue(on_change=self._records_changed)
         self.journal = Journal(self.records_dir, rotate_bytes=service.rotate_bytes, keep_files=service.keep_files,
@@ -141,6 +143,11 @@ class ServiceRuntime:
             bus_channel=self.config.bus.channel,
             embedded_node=self.node is not None,
         )
+        from millctl.protocol.bus_check import startup_link_problems
+
+        self.bus_warnings = startup_link_problems(self.config.bus)
+        for problem in self.bus_warnings:
+            self.journal.add(EventKind.BUS, "service", problem)
         for run in self.recipe.unfinished():  # the runs a crash, a kill or a reboot left unfinished: offered, never run
             self.journal.add(EventKind.SERVICE, "service", f"unfinished run {run.run_id} ({run.recipe}, step "
                              f"{min(run.step, run.steps)}/{run.steps}): {run.reason}; `millctl recipe resume "
@@ -273,13 +280,14 @@ class ServiceRuntime:
         )
 
     def warnings(self) -> list[str]:
-        """What the operator must know about the service itself: records that cannot be written, interrupted runs."""
+        """What the operator must know about the service: its CAN link, records not written, interrupted runs."""
         found = [f"run {run.run_id} ({run.recipe}) is unfinished at step {min(run.step, run.steps)}/{run.steps}: "
                  f"{run.reason}; `millctl recipe resume {run.run_id}` continues it"
                  for run in self.recipe.unfinished()]
         if self.records_warning is None:
-            return found
-        return [f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
+            return [*self.bus_warnings, *found]
+        return [*self.bus_warnings,
+                f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
                 f"records dir {self.records_dir}); the mill is controlled as before", *found]
 
     def _records_changed(self, failing: str | None) -> None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import time
 from typing import Any
 
 import pytest
@@ -19,6 +18,7 @@ from textual.widgets import Input, Static
 from millctl.api import StatusOut
 from millctl.tui import MillApp
 from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal
+from tests.support.pace import Deadline
 from tests.support.tui import Service, until
 
 SIZE = (120, 40)
@@ -107,8 +107,8 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
         # the recovery procedure: the controlled stop finishes, the cause is removed, standstill, reset
         await until(pilot, lambda: at_rest(app.status), "the end of the controlled stop", timeout_s=30.0)
         fault_service.proc.send_signal(signal.SIGUSR2)  # SimFault CLEAR: the vibration rotor is free again
-        deadline = time.monotonic() + 30.0
-        while app.state != "DISABLED" and time.monotonic() < deadline:
+        deadline = Deadline(30.0)  # waits for processes: stretches with load
+        while app.state != "DISABLED" and not deadline.expired():
             # as an operator would: reset at standstill, and again if it was refused (the freed rotor can
             # read a rpm or two for a moment after the clear: "reset refused: drives not at standstill")
             await until(pilot, lambda: at_rest(status_of(fault_service)), "standstill after the clear", timeout_s=30.0)

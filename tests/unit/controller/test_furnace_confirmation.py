@@ -6,8 +6,11 @@ state and setpoint given, or (``follow``) those of the last Setpoints frame.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import ControllerState
 from millctl.controller.furnace_expect import FurnaceExpectation
 from millctl.protocol import EStop, FurnaceTelemetry, NodeState, Setpoints
@@ -17,7 +20,7 @@ S = ControllerState
 
 
 @pytest.fixture
-def bench(config):
+def bench(config: MillConfig) -> Iterator[ScriptedNode]:
     b = ScriptedNode(config)
     yield b
     b.close()
@@ -36,7 +39,7 @@ def heater_frames(bench: ScriptedNode) -> list[Setpoints]:
     return [d.message for _, d in bench.of(Setpoints) if isinstance(d.message, Setpoints) and d.message.heater_on]
 
 
-def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench):
+def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(30.0)
     bench.run(17.0, follow=True)  # 5 °C at 20 °C/min: 15 s up, then held
@@ -49,7 +52,7 @@ def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench):
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
 
 
-def test_a_heater_the_node_turns_on_uncommanded_trips(bench, config):
+def test_a_heater_the_node_turns_on_uncommanded_trips(bench: ScriptedNode, config: MillConfig) -> None:
     running(bench)
     bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=200.0, heater_on=True)
     assert bench.controller.state is S.TRIPPED
@@ -58,7 +61,7 @@ def test_a_heater_the_node_turns_on_uncommanded_trips(bench, config):
     assert f"{config.interlock.debounce_samples} reports in a row" in cause
 
 
-def test_a_furnace_setpoint_above_the_one_commanded_trips(bench):
+def test_a_furnace_setpoint_above_the_one_commanded_trips(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     bench.run(3.0, follow=True)
@@ -72,7 +75,7 @@ def test_a_furnace_setpoint_above_the_one_commanded_trips(bench):
     assert f"heater on at {top + 5.0:.1f} °C" in bench.controller.trip_cause
 
 
-def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench):
+def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     window_s = bench.controller.furnace_expectation.window_s
@@ -84,7 +87,7 @@ def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench)
     assert "did not take its furnace target" in bench.controller.trip_cause
 
 
-def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
+def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     bench.run(5.0, follow=True)
@@ -93,7 +96,7 @@ def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
     assert "did not take its furnace target" in bench.controller.trip_cause
 
 
-def test_a_heater_on_after_a_trip_is_an_estop(bench):
+def test_a_heater_on_after_a_trip_is_an_estop(bench: ScriptedNode) -> None:
     running(bench)
     bench.run(0.2, state=NodeState.FAULT)
     assert bench.controller.state is S.TRIPPED

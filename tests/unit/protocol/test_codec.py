@@ -27,6 +27,7 @@ from millctl.protocol import (
     FaultFlag,
     Heartbeat,
     MillMessage,
+    NodeStatus,
     ProtocolError,
     Setpoints,
     SignalRangeError,
@@ -107,7 +108,8 @@ def test_out_of_range_encode_is_refused_with_name_value_and_range(
     else:
         step = 1 if is_int else 0.5
         bad = low - step if side == "below" else top + step
-    message = dataclasses.replace(base, **{name: bad})
+    changes: dict[str, Any] = {name: bad}
+    message = dataclasses.replace(base, **changes)
     with pytest.raises(SignalRangeError) as caught:
         CODEC.encode(message)
     text = str(caught.value)
@@ -128,8 +130,10 @@ def test_values_outside_the_value_table_and_bad_counters_are_refused() -> None:
         CODEC.encode(Command(command=0))  # type: ignore[arg-type]
     with pytest.raises(SignalRangeError, match=r"Heartbeat\.counter = 16"):
         CODEC.encode(Heartbeat(ControllerState.IDLE), counter=16)
+    status = edge_message(NodeStatus, False)
+    assert isinstance(status, NodeStatus)
     with pytest.raises(SignalRangeError, match="refused_setpoints"):
-        CODEC.encode(dataclasses.replace(edge_message(MESSAGE_TYPES[4], False), refused_setpoints=1.5))
+        CODEC.encode(dataclasses.replace(status, refused_setpoints=1.5))  # type: ignore[arg-type]  # a count, not 1.5
 
 
 def test_estop_has_the_highest_priority_identifier() -> None:

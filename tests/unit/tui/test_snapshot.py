@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from textual.geometry import Region
 from textual.pilot import Pilot
+from textual.widget import Widget
 from textual.widgets import Static
 
 from millctl.config import LimitLaw
@@ -76,7 +77,7 @@ async def test_at_80_by_24_every_panel_is_on_screen() -> None:
 def _low_contrast(app: MillApp) -> list[tuple[float, str, str]]:
     """Every text segment on screen whose foreground is below 4.5:1 against its background (box lines aside)."""
     found = []
-    for widget in app.screen.walk_children():
+    for widget in app.screen.walk_children(Widget):
         if not widget.display or not widget.region:
             continue
         for strip in widget.render_lines(Region(0, 0, widget.region.width, widget.region.height)):
@@ -86,7 +87,7 @@ def _low_contrast(app: MillApp) -> list[tuple[float, str, str]]:
                     continue
                 if all(0x2500 <= ord(ch) < 0x2600 for ch in text):
                     continue
-                ratio = contrast(tuple(style.color.get_truecolor()), tuple(style.bgcolor.get_truecolor()))
+                ratio = contrast(style.color.get_truecolor(), style.bgcolor.get_truecolor())
                 if ratio < MIN_CONTRAST or style.dim:
                     found.append((round(ratio, 2), text[:20], type(widget).__name__))
     return found
