@@ -35,7 +35,7 @@ def start_in_the_hold(directory: Path, hold_s: float) -> tuple[Service, str, Pat
     return running, progress.run_id, Path(progress.record)
 
 
-def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_done():
+def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_done() -> None:
     with private_dir() as directory:
         fast_mill(directory)
         first, run_id, record = start_in_the_hold(directory, hold_s=20.0)  # long enough to try a second resume
@@ -74,9 +74,10 @@ def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_don
             again = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes")
             assert again.returncode == 2 and f"run {run_id} is" in again.stderr, again.stderr
             with running.client() as client:
-                wait_for(lambda: client.recipe().progress.state == "DONE", 90, "the resumed run to end DONE")
+                wait_for(lambda: (p := client.recipe().progress) is not None and p.state == "DONE", 90,
+                         "the resumed run to end DONE")
                 final = client.recipe().progress
-                assert final.run_id == run_id and final.resumed and final.gap_s > 0.0
+                assert final is not None and final.run_id == run_id and final.resumed and final.gap_s > 0.0
                 assert client.service().unfinished_runs == []
             # a finished run is refused
             finished = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes")
@@ -92,7 +93,7 @@ def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_don
         assert events.index("gap") < events.index("restore") < events.index("restored") < events.index("end")
 
 
-def test_a_service_stop_interrupts_the_run_and_an_operator_can_close_it():
+def test_a_service_stop_interrupts_the_run_and_an_operator_can_close_it() -> None:
     with private_dir() as directory:
         fast_mill(directory)
         first, run_id, record = start_in_the_hold(directory, hold_s=60.0)

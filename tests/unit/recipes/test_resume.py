@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.recipes import parse_recipe, plan_recipe
 from millctl.recipes.history import (
     RUNS_DIR,
@@ -52,7 +54,7 @@ def recipe_text(hold_s: float = 20.0, furnace: str = "") -> str:
     return HOLD.format(hold_s=hold_s, furnace=furnace)
 
 
-def write_record(directory: Path, run_id: str, records: list[dict], tail: bytes = b"") -> Path:
+def write_record(directory: Path, run_id: str, records: list[dict[str, Any]], tail: bytes = b"") -> Path:
     path = directory / RUNS_DIR / f"{run_id}.jsonl"
     path.parent.mkdir(parents=True, exist_ok=True)
     lines = b"".join(json.dumps({"run_id": run_id, **r}).encode() + b"\n" for r in records)
@@ -60,7 +62,7 @@ def write_record(directory: Path, run_id: str, records: list[dict], tail: bytes 
     return path
 
 
-def started(text: str, t: float = 1000.0) -> dict:
+def started(text: str, t: float = 1000.0) -> dict[str, Any]:
     loaded = parse_recipe(text, "resume-test.toml")
     return {"event": "start", "t": t, "recipe": "resume-test", "recipe_file": "resume-test.toml",
             "recipe_sha256": loaded.sha256, "config_sha256": CONFIG_SHA, "steps": 3, "recipe_text": text}
@@ -80,7 +82,7 @@ def interrupted_in_hold(tmp_path: Path, run_id: str = "20260101T000000Z-abcdef",
     ], tail)
 
 
-def test_an_unfinished_record_says_the_step_and_the_time_done_in_it(tmp_path):
+def test_an_unfinished_record_says_the_step_and_the_time_done_in_it(tmp_path: Path) -> None:
     path = interrupted_in_hold(tmp_path, tail=b'{"run_id": "x", "event": "sam')  # a write cut by the kill
     history = read_history(path)
     assert history.ended is None and (history.step, history.kind) == (2, "hold")
@@ -92,7 +94,7 @@ def test_an_unfinished_record_says_the_step_and_the_time_done_in_it(tmp_path):
     assert repair_tail(path) == 0
 
 
-def test_a_hold_keeps_its_time_a_ramp_runs_again(tmp_path):
+def test_a_hold_keeps_its_time_a_ramp_runs_again(tmp_path: Path) -> None:
     history = read_history(interrupted_in_hold(tmp_path))
     loaded = parse_recipe(recipe_text(), "resume-test.toml")
     point = resume_point(history, loaded)
@@ -106,7 +108,7 @@ def test_a_hold_keeps_its_time_a_ramp_runs_again(tmp_path):
     assert (ramp.index, ramp.credit_s) == (2, 0.0)  # a ramp ends on its target, not on time
 
 
-def test_the_setpoints_in_force_carry_the_furnace_past_ramps_that_set_none():
+def test_the_setpoints_in_force_carry_the_furnace_past_ramps_that_set_none() -> None:
     text = recipe_text(furnace="furnace_c = 400.0\nheating_rate_c_per_min = 10.0")
     loaded = parse_recipe(text, "r.toml")
     held = setpoints_before(loaded.recipe, 3)
@@ -114,7 +116,7 @@ def test_the_setpoints_in_force_carry_the_furnace_past_ramps_that_set_none():
     assert setpoints_before(loaded.recipe, 0).point.omega_r_rpm == 0.0
 
 
-def test_a_finished_run_a_changed_recipe_or_config_are_refused(tmp_path):
+def test_a_finished_run_a_changed_recipe_or_config_are_refused(tmp_path: Path) -> None:
     path = interrupted_in_hold(tmp_path)
     history = read_history(path)
     loaded = parse_recipe(recipe_text(), "resume-test.toml")
@@ -132,7 +134,7 @@ def test_a_finished_run_a_changed_recipe_or_config_are_refused(tmp_path):
         resume_point(ended, loaded)
 
 
-def test_a_live_run_is_never_offered_and_a_second_lock_is_refused(tmp_path):
+def test_a_live_run_is_never_offered_and_a_second_lock_is_refused(tmp_path: Path) -> None:
     path = interrupted_in_hold(tmp_path)
     lock = RunLock.acquire(path)
     try:
@@ -144,7 +146,7 @@ def test_a_live_run_is_never_offered_and_a_second_lock_is_refused(tmp_path):
     assert len(unfinished_runs(tmp_path)) == 1
 
 
-def test_a_damaged_or_foreign_record_is_named_and_skipped(tmp_path):
+def test_a_damaged_or_foreign_record_is_named_and_skipped(tmp_path: Path) -> None:
     write_record(tmp_path, "20260101T000000Z-000000", [{"event": "sample"}])
     bad = interrupted_in_hold(tmp_path, "20260101T000000Z-111111")
     bad.write_bytes(bad.read_bytes().replace(b'"step_end"', b'step_end"', 1))
@@ -156,7 +158,7 @@ def test_a_damaged_or_foreign_record_is_named_and_skipped(tmp_path):
 
 
 # ---------------------------------------------------------------- a resumed run on the simulated node
-def interrupt_in_the_hold(config, tmp_path: Path, text: str, done_s: float, step: int = 2) -> Path:
+def interrupt_in_the_hold(config: MillConfig, tmp_path: Path, text: str, done_s: float, step: int = 2) -> Path:
     """Run to ``done_s`` into step ``step``, then lose the service (nothing more is written: a SIGKILL)."""
     loaded = parse_recipe(text, "resume-test.toml")
     rig = Rig(config)
@@ -171,7 +173,7 @@ def interrupt_in_the_hold(config, tmp_path: Path, text: str, done_s: float, step
         rig.close()
 
 
-def resume_on_a_fresh_mill(config, path: Path, text: str) -> tuple[Rig, RecipeRunner]:
+def resume_on_a_fresh_mill(config: MillConfig, path: Path, text: str) -> tuple[Rig, RecipeRunner]:
     """A new controller and node (the service and the mill restarted), then the run resumed from its record."""
     rig = Rig(config)
     rig.run(1.0)
@@ -186,7 +188,9 @@ def resume_on_a_fresh_mill(config, path: Path, text: str) -> tuple[Rig, RecipeRu
     return rig, runner
 
 
-def test_a_run_lost_mid_hold_resumes_with_its_time_credited_and_the_gap_recorded(config, tmp_path):
+def test_a_run_lost_mid_hold_resumes_with_its_time_credited_and_the_gap_recorded(
+    config: MillConfig, tmp_path: Path
+) -> None:
     text = recipe_text(hold_s=20.0)
     path = interrupt_in_the_hold(config, tmp_path, text, done_s=8.0)
     credited = read_history(path).step_elapsed_s
@@ -216,25 +220,28 @@ def test_a_run_lost_mid_hold_resumes_with_its_time_credited_and_the_gap_recorded
     assert read_history(path).ended == "DONE" and unfinished_runs(tmp_path) == []
 
 
-def test_the_restore_ramps_the_furnace_from_its_measured_temperature(config, tmp_path):
+def test_the_restore_ramps_the_furnace_from_its_measured_temperature(config: MillConfig, tmp_path: Path) -> None:
     text = recipe_text(hold_s=10.0, furnace="furnace_c = 40.0\nheating_rate_c_per_min = 20.0")
     path = interrupt_in_the_hold(config, tmp_path, text, done_s=3.0)
     rig, runner = resume_on_a_fresh_mill(config, path, text)
     try:
-        measured_c = rig.controller.furnace.temp_c
+        furnace = rig.controller.furnace
+        assert furnace is not None
+        measured_c = furnace.temp_c
         assert measured_c < 30.0  # the restarted furnace is cold
         drive(rig, runner, 10.0, until=lambda: runner._restore is not None)
         c = rig.controller
         assert c.furnace_target_c == 40.0 and c.furnace_setpoint_c < measured_c + 1.0  # not a step to 40 °C
         drive(rig, runner, 300.0, until=lambda: runner._restore is None)
-        assert rig.controller.furnace.temp_c >= 37.0  # the hold waited for its band (40 ± 3 °C)
+        furnace = rig.controller.furnace
+        assert furnace is not None and furnace.temp_c >= 37.0  # the hold waited for its band (40 ± 3 °C)
         drive(rig, runner, 240.0)
         assert runner.state is RunState.DONE, runner.reason
     finally:
         rig.close()
 
 
-def test_a_resume_is_refused_while_the_mill_turns_or_is_tripped(config, tmp_path):
+def test_a_resume_is_refused_while_the_mill_turns_or_is_tripped(config: MillConfig, tmp_path: Path) -> None:
     text = recipe_text()
     path = interrupt_in_the_hold(config, tmp_path, text, done_s=2.0)
     rig = Rig(config)
@@ -258,7 +265,7 @@ def test_a_resume_is_refused_while_the_mill_turns_or_is_tripped(config, tmp_path
         rig.close()
 
 
-def test_a_ramp_lost_mid_way_runs_again_from_standstill_to_its_target(config, tmp_path):
+def test_a_ramp_lost_mid_way_runs_again_from_standstill_to_its_target(config: MillConfig, tmp_path: Path) -> None:
     text = recipe_text(hold_s=2.0)
     path = interrupt_in_the_hold(config, tmp_path, text, done_s=1.0, step=1)
     rig, runner = resume_on_a_fresh_mill(config, path, text)
@@ -274,7 +281,9 @@ def test_a_ramp_lost_mid_way_runs_again_from_standstill_to_its_target(config, tm
     assert [r["step"] for r in records if r["event"] == "step_end"] == [1, 2, 3]
 
 
-def test_a_pause_during_the_restore_credits_nothing_and_the_restore_goes_on_after(config, tmp_path):
+def test_a_pause_during_the_restore_credits_nothing_and_the_restore_goes_on_after(
+    config: MillConfig, tmp_path: Path
+) -> None:
     text = recipe_text(hold_s=10.0)
     path = interrupt_in_the_hold(config, tmp_path, text, done_s=4.0)
     credited = read_history(path).step_elapsed_s
