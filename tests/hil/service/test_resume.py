@@ -8,11 +8,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+from millctl.client import ServiceRefused, read_recipe_text
 from millctl.recipes.history import read_history
 from millctl.records import read_records
 from tests.hil.service.test_recipe_cli import fast_mill, recipe
 from tests.support.pace import stretched
 from tests.support.service import REPO, Service, private_dir, run_millctl, start_service, wait_for
+
+pytestmark = pytest.mark.timeout(300)  # a safety net against a hang: each test lives through two service starts
 
 
 def millctl_no_tty(config: Path, *args: str) -> subprocess.CompletedProcess[str]:
@@ -25,9 +30,8 @@ def millctl_no_tty(config: Path, *args: str) -> subprocess.CompletedProcess[str]
 def start_in_the_hold(directory: Path, hold_s: float) -> tuple[Service, str, Path]:
     """A service running the short recipe, a couple of seconds into its hold step."""
     running = start_service(directory)
-    result = run_millctl(running.config, "recipe", "run", "--detach", str(recipe(directory, hold_s=hold_s)))
-    assert result.returncode == 0, result.stderr
-    with running.client() as client:
+    with running.client() as client, client.control():
+        client.recipe_run(recipe(directory, hold_s=hold_s))
         wait_for(lambda: (p := client.recipe().progress) is not None and p.step == 2
                  and (p.step_elapsed_s or 0.0) >= 2.5, 60, "2.5 s into the hold step")
         progress = client.recipe().progress
@@ -38,7 +42,7 @@ def start_in_the_hold(directory: Path, hold_s: float) -> tuple[Service, str, Pat
 def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_done() -> None:
     with private_dir() as directory:
         fast_mill(directory)
-        first, run_id, record = start_in_the_hold(directory, hold_s=20.0)  # long enough to try a second resume
+        first, run_id, record = start_in_the_hold(directory, hold_s=10.0)
         assert first.stop(signal.SIGKILL) == -signal.SIGKILL
         done_before = read_history(record).step_elapsed_s
         assert 1.0 <= done_before <= 4.0
@@ -61,27 +65,25 @@ def test_a_run_killed_mid_recipe_is_offered_after_the_restart_and_resumed_to_don
             unconfirmed = millctl_no_tty(running.config, "recipe", "resume", run_id)
             assert unconfirmed.returncode == 2 and "confirm with --yes" in unconfirmed.stderr
             assert "then step 2 (hold) continues with" in unconfirmed.stderr
-            # a changed recipe is refused
-            changed = recipe(directory, hold_s=21.0)
-            refused = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes", "--recipe", str(changed))
-            assert refused.returncode == 2 and "the recipe changed" in refused.stderr
-            with running.client() as client:
+            with running.client() as client, client.control():
+                # a changed recipe is refused
+                changed = read_recipe_text(recipe(directory, hold_s=11.0))[1]
+                with pytest.raises(ServiceRefused, match="the recipe changed"):
+                    client.recipe_resume_run(run_id, confirm=True, text=changed)
                 assert client.status().setpoint_rotary_rpm == 0.0 and client.recipe().progress is None
 
             resumed = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes", "--detach")
             assert resumed.returncode == 0, resumed.stderr
-            # a second resume while it runs is refused
-            again = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes")
-            assert again.returncode == 2 and f"run {run_id} is" in again.stderr, again.stderr
-            with running.client() as client:
+            with running.client() as client, client.control():
+                with pytest.raises(ServiceRefused, match=f"run {run_id} is RUNNING in this service"):
+                    client.recipe_resume_run(run_id, confirm=True)  # a second resume while it runs
                 wait_for(lambda: (p := client.recipe().progress) is not None and p.state == "DONE", 90,
                          "the resumed run to end DONE")
                 final = client.recipe().progress
                 assert final is not None and final.run_id == run_id and final.resumed and final.gap_s > 0.0
                 assert client.service().unfinished_runs == []
-            # a finished run is refused
-            finished = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes")
-            assert finished.returncode == 2 and "ended DONE" in finished.stderr
+                with pytest.raises(ServiceRefused, match="ended DONE"):
+                    client.recipe_resume_run(run_id, confirm=True)  # a finished run
         finally:
             running.stop()
         records = list(read_records(record))
@@ -107,10 +109,10 @@ def test_a_service_stop_interrupts_the_run_and_an_operator_can_close_it() -> Non
             assert "interrupted: " in listed.stdout
             closed = run_millctl(running.config, "recipe", "abort", run_id)
             assert closed.returncode == 0, closed.stderr
-            with running.client() as client:
+            with running.client() as client, client.control():
                 assert client.service().unfinished_runs == []
-            gone = millctl_no_tty(running.config, "recipe", "resume", run_id, "--yes")
-            assert gone.returncode == 2 and "ended ABORTED" in gone.stderr
+                with pytest.raises(ServiceRefused, match="ended ABORTED"):
+                    client.recipe_resume_run(run_id, confirm=True)
             unknown = millctl_no_tty(running.config, "recipe", "resume", "20990101T000000Z-000000", "--yes")
             assert unknown.returncode == 1 and "no record" in unknown.stderr
         finally:
