@@ -49,10 +49,13 @@ from millctl.api import (
     EnvelopeOut,
     EventOut,
     EventsOut,
+    FaultsOut,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipeResumeOut,
     ServiceOut,
+    SimFaultName,
     StatusOut,
     StreamKind,
     UnfinishedRunOut,
@@ -270,6 +273,22 @@ def _recipe_run_text(name: str, text: str) -> Request:
     return _post("/v1/recipe/run", {"name": name, "text": text})
 
 
+def _recipe_check(path: str | os.PathLike[str]) -> Request:
+    """Pre-flight a recipe file against the service's envelope: read here, sent by content; nothing starts."""
+    name, text = read_recipe_text(path)
+    return _post("/v1/recipe/check", {"name": name, "text": text})
+
+
+def _faults() -> Request:
+    """The faults injected into the simulated node (GET /v1/sim/faults; serve --fault-injection only)."""
+    return _get("/v1/sim/faults")
+
+
+def _inject_fault(fault: SimFaultName | str, active: bool = True, param: float = 0.0) -> Request:
+    """Inject (or clear) a simulated node fault for an operator drill (serve --fault-injection only)."""
+    return _post("/v1/sim/faults", {"fault": str(fault), "active": active, "param": param})
+
+
 def _recipe_pause(now: bool = False) -> Request:
     """Pause the run at the next step boundary, or now."""
     return _post("/v1/recipe/pause", {"now": now})
@@ -417,6 +436,9 @@ class Operations(_Base):
     recipe_unfinished = Operation(UnfinishedRunsOut, _recipe_unfinished)
     recipe_resume_run = Operation(RecipeResumeOut, _recipe_resume_run)
     recipe_close_run = Operation(UnfinishedRunOut, _recipe_close_run)
+    recipe_check = Operation(RecipeCheckOut, _recipe_check)
+    faults = Operation(FaultsOut, _faults)
+    inject_fault = Operation(FaultsOut, _inject_fault)
 
 
 class Client(Operations):

@@ -31,6 +31,7 @@ from millctl.api import (
     EventsOut,
     FurnaceRequest,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipePauseRequest,
     RecipeProgress,
@@ -51,6 +52,8 @@ from millctl.recipes.history import RUN_ID_PATTERN, RunLock, repair_tail
 from millctl.safety import InterlockRefused
 from millctl.service.envelope_view import envelope_out
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
+from millctl.service.faults import add_fault_routes
+from millctl.service.headers import ClientName, LeaseId, client_source
 from millctl.service.journal import finite
 from millctl.service.limits import BodyLimit
 from millctl.service.recipe import unfinished_out
@@ -74,15 +77,7 @@ SETTLES_IN: dict[str, frozenset[ControllerState]] = {
 }
 """The states a command leads to once the node has answered (a trip ends the wait too)."""
 
-ClientName = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
-]
 RunId = Annotated[str, Path(pattern=RUN_ID_PATTERN, description="the run's id, e.g. 20260101T120000Z-1a2b3c")]
-LeaseId = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_-]{1,64}$", description="the lease id from POST /v1/control/take"),
-]
 
 
 def create_app(runtime: ServiceRuntime) -> FastAPI:
@@ -97,8 +92,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=runtime.config.service.max_request_bytes)
     rt = runtime
 
-    def source(name: str | None) -> str:
-        return f"api:{name or 'anonymous'}"
+    if rt.fault_injection:
+        add_fault_routes(app, rt)
 
     def command(lease: str | None, what: str, action: Any, *, idle: bool = True, settles: str = "") -> CommandOut:
         """Check the lease, run ``action(controller, source)`` under the lock, and answer with the state it led to.
@@ -187,7 +182,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         body: Annotated[TakeRequest | None, Body()] = None,
     ) -> LeaseOut:
         """Take control (or renew it); ``force`` takes over an expired lease, never a live one."""
-        holder = source(x_millctl_client)
+        holder = client_source(x_millctl_client)
         lease, taken_from = rt.leases.take(holder, lease_id=x_millctl_lease, force=bool(body and body.force))
         if x_millctl_lease != lease.lease_id:  # a new lease, not a renewal
             note = f" (took over the expired lease of {taken_from})" if taken_from else ""
@@ -231,7 +226,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
         """Emergency stop: needs no lease and is always accepted."""
-        who = source(x_millctl_client)
+        who = client_source(x_millctl_client)
 
         def act(c: Controller) -> CommandOut:
             rt.recipe.abort_if_active(who)
@@ -340,6 +335,15 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
                        run_id=run_id)
         out = unfinished_out(closed)
         return out.model_copy(update={"state": RunState.ABORTED})
+
+    @app.post("/v1/recipe/check", response_model=RecipeCheckOut, responses=READ_RESPONSES, tags=["recipe"])
+    def recipe_check(body: RecipeRunRequest) -> RecipeCheckOut:
+        """Pre-flight a recipe sent as its TOML text against this service's envelope; nothing is started.
+
+        Answers 200 for a recipe that would be refused too, with every problem: a client can list recipes
+        with their verdicts (the TUI's recipe list) without holding control.
+        """
+        return rt.recipe.check(body.name, body.text, rt.config)
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_pause(

@@ -23,11 +23,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from millctl.api import RecipeOut, RecipeProgress, ResumeCheckOut, RunGapOut, RunState, UnfinishedRunOut
+from millctl.api import RecipeCheckOut, RecipeOut, RecipeProgress, ResumeCheckOut, RunGapOut, RunState, UnfinishedRunOut
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.controller import CommandRefused, Controller
-from millctl.errors import InterlockError
+from millctl.errors import InterlockError, RecipeError
 from millctl.recipes import LoadedRecipe, RecipePlan, parse_recipe, plan_recipe
 from millctl.recipes.history import (
     RUNS_DIR,
@@ -120,6 +120,22 @@ class RecipeSlot:
         if not plan.ok:
             raise RecipeRefused(loaded.source, plan.law, plan.violations)
         return loaded, plan
+
+    @staticmethod
+    def check(name: str, text: str, config: MillConfig) -> RecipeCheckOut:
+        """Pre-flight a recipe's text without starting it: every violation or invalid field, or its plan."""
+        law = config.interlock.law.value
+        try:
+            loaded = parse_recipe(text, name)
+        except RecipeError as exc:
+            return RecipeCheckOut(source=name, recipe=None, ok=False, steps=0, planned_s=None, open_ended=False,
+                                  dose_kj_g=None, law=law, problems=exc.problems)
+        plan = plan_recipe(loaded.recipe, config)
+        return RecipeCheckOut(
+            source=name, recipe=loaded.recipe.recipe.name, ok=plan.ok, steps=len(plan.steps),
+            planned_s=plan.total_s, open_ended=any(step.open_ended for step in plan.steps),
+            dose_kj_g=plan.total_dose_kj_g, law=plan.law, problems=[str(v) for v in plan.violations],
+        )
 
     def lock_new_run(self) -> tuple[str, RunLock]:
         """A new run's id and its record's lock (in the request's thread: the loop never waits for the disk)."""

@@ -38,6 +38,7 @@ from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
 from millctl.errors import BusError
 from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
+from millctl.service.faults import embeds_node, require_simulated
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
 from millctl.service.recipe import RecipeSlot
@@ -86,9 +87,14 @@ class ServiceRuntime:
         clock: Clock | None = None,
         embed_node: bool | None = None,
         lease_ttl_s: float = DEFAULT_TTL_S,
+        fault_injection: bool = False,
     ) -> None:
         self.loaded = loaded
         config = self.config = loaded.config
+        if fault_injection:
+            require_simulated(config, embed_node)  # before anything is opened
+        self.fault_injection = fault_injection
+        """An instructor may inject the embedded node's faults (``/v1/sim/faults``; :mod:`.faults`)."""
         service = config.service
         self.clock = clock or MonotonicClock()
         self.records_dir = service_paths(loaded).records_dir
@@ -115,11 +121,11 @@ class ServiceRuntime:
         self.controller = Controller(config, self.bus, self.clock, listener=self.journal.on_event)
         self.node: Any = None
         self._node_bus: can.BusABC | None = None
-        if config.bus.interface == "virtual" if embed_node is None else embed_node:
+        if embeds_node(config, embed_node):
             from firmware_sim.node import Node
 
             self._node_bus = open_bus(config.bus)
-            self.node = Node(config, self._node_bus, self.clock)
+            self.node = Node(config, self._node_bus, self.clock, fault_injection=fault_injection)
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
         self._halt = threading.Event()
         self._closed = False
@@ -272,6 +278,7 @@ class ServiceRuntime:
         env = self.controller.envelope
         return ServiceOut(
             mill_name=self.config.name, simulated=self.node is not None, pid=os.getpid(), version=__version__,
+            fault_injection=self.fault_injection,
             started_unix=self.started_unix, config_path=self.loaded.source, config_sha256=self.loaded.sha256,
             law=env.law.value, margin=env.margin, bus_interface=self.config.bus.interface,
             bus_channel=self.config.bus.channel, embedded_node=self.node is not None, socket_path=self.socket_path,

@@ -57,6 +57,7 @@ class Following(MillView):
                 self.notify(f"run {run_id} is unfinished (the service stopped under it): `millctl recipe resume "
                             f"{run_id}` continues it after a pre-flight", title="interrupted run",
                             severity="warning", timeout=30.0, markup=False)
+        self.apply_service(service)
         self.apply_envelope(await client.envelope(points=161))
         self.apply_status(await client.status())
         self.apply_control(await client.control_state())

@@ -10,15 +10,20 @@ import pytest
 from textual.geometry import Region
 from textual.pilot import Pilot
 from textual.widget import Widget
-from textual.widgets import Static
+from textual.widgets import Checkbox, Input, Static
 
-from millctl.config import LimitLaw
+from millctl.api import CheckOut
+from millctl.config import LimitLaw, load_config
+from millctl.config.loader import packaged_file
+from millctl.safety import Envelope
 from millctl.tui import MillApp
 from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.legible import MIN_CONTRAST, contrast
+from millctl.tui.modals import SetpointsModal, SetRequest
 from tests.unit.tui import frozen
 
 SIZE = (120, 40)
+ENVELOPE = Envelope.from_config(load_config(packaged_file("mill.toml")).config)
 
 
 @pytest.fixture
@@ -143,3 +148,42 @@ async def test_envelope_view_follows_the_status_and_goes_back() -> None:
         await pilot.press("escape")
         await pilot.pause()
         assert not isinstance(app.screen, EnvelopeScreen)
+
+
+async def envelope_check(rotary_rpm: float, vibration_rpm: float, temp_c: float | None) -> CheckOut:
+    """The service's ``POST /v1/envelope/check`` verdict, from the packaged config's own envelope, in-process."""
+    verdict = ENVELOPE.check(rotary_rpm, vibration_rpm, temp_c)
+    return CheckOut(ok=verdict.ok, reason=verdict.reason(), limit_rotary_rpm=verdict.omega_r_limit_rpm,
+                    margin_rpm=verdict.margin_rpm, refusals=[])
+
+
+def test_set_dialog_with_ramp_rates_and_the_linear_path(snap_compare: Any, utc: None) -> None:
+    """The set dialog offers both ramp rates and the linear path, and shows the interlock's limit and verdict."""
+    app = MillApp(frozen.SOCKET, live=False)
+
+    async def run(pilot: Pilot[None]) -> None:
+        await feeder(app)(pilot)
+        app.push_screen(SetpointsModal(envelope_check, 180.0, 800.0, None))
+        await pilot.pause()
+        modal = app.screen
+        modal.query_one("#rot_rate", Input).value = "12.5"
+        modal.query_one("#vib_rate", Input).value = "60"
+        modal.query_one("#linear", Checkbox).value = True
+        for _ in range(20):
+            await pilot.pause(0.02)
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=run)
+
+
+async def test_set_dialog_hands_over_rates_and_the_linear_path() -> None:
+    app = MillApp(frozen.SOCKET, live=False)
+    chosen: list[SetRequest | None] = []
+    async with app.run_test(size=SIZE) as pilot:
+        modal = SetpointsModal(envelope_check, 180.0, 800.0, None)
+        app.push_screen(modal, chosen.append)
+        await pilot.pause()
+        modal.query_one("#rot_rate", Input).value = "12.5"
+        modal.query_one("#linear", Checkbox).value = True
+        await pilot.press("enter")
+        await pilot.pause()
+    assert chosen == [SetRequest(180.0, 800.0, False, None, 12.5, None, True)]
