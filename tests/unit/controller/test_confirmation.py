@@ -50,6 +50,7 @@ def test_an_arm_the_node_never_confirms_is_repeated_then_trips_naming_it(
     bench.run(0.1, state=NodeState.DISABLED)
     assert bench.controller.state is S.TRIPPED
     assert "ARM" in bench.controller.trip_cause and "not confirmed" in bench.controller.trip_cause
+    assert f"after {sent_commands(bench, CommandCode.ARM)} send(s)" in bench.controller.trip_cause
 
 
 def test_a_confirmed_command_is_not_repeated(bench: ScriptedNode) -> None:
@@ -161,7 +162,7 @@ def test_a_reset_forgets_the_debounce_counts(config: MillConfig) -> None:
     """After reset, a trip needs the full debounce count again (kills the reset mutants of both monitors)."""
     from millctl.controller.expect import SpeedExpectation
     from millctl.controller.monitor import MeasuredSpeedMonitor
-    from millctl.safety import STANDSTILL, Envelope, RampPlanner
+    from millctl.safety import STANDSTILL, Envelope, RampPlanner, SpeedPoint
 
     envelope = Envelope.from_config(config)
     n = config.interlock.debounce_samples
@@ -176,3 +177,10 @@ def test_a_reset_forgets_the_debounce_counts(config: MillConfig) -> None:
     assert monitor.outside_in_a_row == 0 and expectation.outside_in_a_row == 0
     assert monitor.update(260.0, 800.0) is None  # one outside sample after the reset does not trip
     assert expectation.check(0.0, 50.0, 0.0) is None
+    # a drive at rest though commanded to turn counts a whole window from after the reset
+    expectation.commanded(10.0, SpeedPoint(0.0, 400.0))
+    expectation.commanded(12.5, SpeedPoint(0.0, 400.0))
+    expectation.check(12.5, 0.0, 0.0)
+    expectation.reset()
+    assert expectation.check(13.0, 0.0, 0.0) is None
+    assert expectation.check(15.0, 0.0, 0.0) is not None

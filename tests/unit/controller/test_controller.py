@@ -170,6 +170,33 @@ def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench
     assert bench.controller.state is S.DISABLED
 
 
+def test_a_completed_reset_is_confirmed_once_and_not_sent_again(bench: ScriptedNode) -> None:
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+    bench.run(2.0, state=NodeState.DISABLED)  # past the confirmation bound: nothing pending, nothing lost
+    assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
+    assert bench.messages(Command).count(Command(CommandCode.RESET)) == 1
+
+
+def test_a_node_disabled_with_a_fault_still_latched_has_not_confirmed_the_reset(bench: ScriptedNode) -> None:
+    from millctl.protocol import DriveTelemetry, FaultFlag, FurnaceTelemetry, NodeStatus
+
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    for _ in range(10):  # 0.5 s of DISABLED with the WATCHDOG bit still set
+        bench.say(NodeStatus(NodeState.DISABLED, FaultFlag.WATCHDOG))
+        bench.say(DriveTelemetry(0.0, 0.0))
+        bench.say(FurnaceTelemetry(25.0, 25.0, 0.0, False))
+        bench.run(0.05)
+    assert bench.messages(Command).count(Command(CommandCode.RESET)) >= 2  # still pending: sent again
+
+
 def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench: ScriptedNode) -> None:
     armed(bench)
     bench.controller.estop()
