@@ -29,11 +29,12 @@ from typing import TYPE_CHECKING, Any
 
 import can
 import pytest
+from pydantic import BaseModel
 
 from millctl.client import DEFAULT_TIMEOUT_S, Client
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
-from millctl.config.models import Bus, MillConfig
+from millctl.config.models import Bus, Furnace, Interlock, MillConfig, Timing
 from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.errors import MillctlError
 from millctl.protocol import (
@@ -104,7 +105,11 @@ class Bounds:
         return float(os.environ.get("MILLCTL_HIL_SCHEDULING_S", SCHEDULING_ALLOWANCE_S))
 
     def scaled(self, seconds: float) -> float:
-        """``seconds`` of designed reaction plus the scheduling allowance, times the VM's factor."""
+        """``seconds`` of processes reacting (ticks, frame periods) plus the scheduling allowance, times the VM factor.
+
+        Only what processes take scales here; a timeout of the config (``VM_SCALED_KEYS``) is added
+        as it stands in the config in force, which inside the VM is already scaled.
+        """
         return (seconds + self.scheduling_s) * bound_scale()
 
     @property
@@ -116,7 +121,7 @@ class Bounds:
     def watchdog_s(self) -> float:
         """Last heartbeat on the bus → NodeStatus FAULT/WATCHDOG: the timeout, one node tick, one status period."""
         timing = self.config.timing
-        return self.scaled(timing.watchdog_timeout_s + timing.node_tick_s + self._period(NodeStatus))
+        return timing.watchdog_timeout_s + self.scaled(timing.node_tick_s + self._period(NodeStatus))
 
     @property
     def measured_trip_s(self) -> float:
@@ -136,12 +141,12 @@ class Bounds:
         interlock = self.config.interlock
         periods = [self._period(kind) for kind in SAFETY_RELEVANT]
         stale = max(max(interlock.stale_periods * p, interlock.min_stale_s) for p in periods)
-        return self.scaled(stale + self.config.timing.controller_tick_s)
+        return stale + self.scaled(self.config.timing.controller_tick_s)
 
     @property
     def heartbeat_gap_s(self) -> float:
         """The longest gap between controller heartbeats the node tolerates: its watchdog timeout (not padded)."""
-        return self.config.timing.watchdog_timeout_s * bound_scale()
+        return self.config.timing.watchdog_timeout_s
 
 
 # --- timing report --------------------------------------------------------------------------------------------
@@ -176,29 +181,48 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = (
-    "watchdog_timeout_s",
-    "challenge_lifetime_s",
-    "min_stale_s",
-    "setpoint_refresh_s",
-    "startup_grace_s",
-    "setpoint_period_s",
-)
-"""Periods and timeouts of the config multiplied by the VM's measured slowdown there.
+VM_SCALED_KEYS: dict[str, type[BaseModel]] = {
+    "watchdog_timeout_s": Timing,
+    "challenge_lifetime_s": Timing,
+    "setpoint_period_s": Timing,
+    "min_stale_s": Interlock,
+    "startup_grace_s": Interlock,
+    "setpoint_refresh_s": Furnace,
+}
+"""Periods and timeouts of the config multiplied by the VM's measured slowdown there (and their config section).
 
-Python under emulation runs several times slower (``tests/vm/run`` measures how much), so it cannot
+Python under emulation runs many times slower (``tests/vm/run`` measures how much), so it cannot
 meet the host's periods: frames arrive in bursts, and a setpoint step that the node allows per
 ``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh, start-up
 grace and challenge bounds would expire between two slow ticks. Scaling them all by one factor
-keeps their ratios.
+keeps their ratios. A scaled value is held at its field's upper bound in the config model (e.g.
+``setpoint_refresh_s`` ≤ 60 s), so that the config stays valid at any factor.
 """
 
 
+def upper_bound(section: type[BaseModel], key: str) -> float:
+    """The largest value the config model accepts for ``key`` (its ``le``/``lt`` constraint; inf when none)."""
+    bound = math.inf
+    for constraint in section.model_fields[key].metadata:
+        for name in ("le", "lt"):
+            if (value := getattr(constraint, name, None)) is not None:
+                bound = min(bound, float(value))
+    return bound
+
+
+def vm_scaled(key: str, value: float, factor: float) -> float:
+    """``value`` of the config key ``key`` times ``factor``, held at the key's upper bound."""
+    return min(value * factor, upper_bound(VM_SCALED_KEYS[key], key))
+
+
 def _scale_keys(text: str, factor: float) -> str:
-    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor``."""
+    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor`` (held at its upper bound)."""
     for key in VM_SCALED_KEYS:
         text, found = re.subn(
-            rf"^({key}\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) * factor:g}", text, flags=re.MULTILINE
+            rf"^({key}\s*=\s*)([0-9.]+)",
+            lambda m, key=key: f"{m[1]}{vm_scaled(key, float(m[2]), factor):g}",
+            text,
+            flags=re.MULTILINE,
         )
         assert found == 1, f"{key} is not in the packaged mill.toml"
     return text
@@ -207,8 +231,8 @@ def _scale_keys(text: str, factor: float) -> str:
 def write_config(directory: Path, transport: Transport) -> Path:
     """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
 
-    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (10): the VM
-    checks behaviour and frame flow, the host the tight timing.
+    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (the measured
+    slowdown): the VM checks behaviour and frame flow, the host the tight timing.
     """
     text = packaged_file("mill.toml").read_text(encoding="utf-8")
     head = text.partition("[bus]")[0]
@@ -528,6 +552,8 @@ __all__ = [
     "is_status",
     "mill_on",
     "report_timing",
+    "upper_bound",
+    "vm_scaled",
     "wait_for",
     "write_config",
 ]
