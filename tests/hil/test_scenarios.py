@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import pytest
 
 from firmware_sim.faults import BABBLE_ID
-from firmware_sim.motion import Motion
+from firmware_sim.motion import ACCEL_SLACK_FACTOR, ACCEL_SLACK_RPM, Motion
 from millctl.client import InterlockRefusal
 from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.protocol import (
@@ -50,6 +50,7 @@ from tests.hil.scenario_support import (
     Mill,
     Probe,
     Seen,
+    bound_scale,
     is_command,
     is_kind,
     is_status,
@@ -198,11 +199,38 @@ def refused_since(count_before: int) -> Callable[[Seen], bool]:
     return lambda s: isinstance(s.message, NodeStatus) and s.message.refused_setpoints != count_before
 
 
+def raw_jump_target(mill: Mill) -> tuple[float, float]:
+    """A pair inside the envelope, one vibration step from ``LOW_RPM`` that the node must refuse (rpm).
+
+    The node allows a step of ``ACCEL_SLACK_FACTOR × max_accel × elapsed + ACCEL_SLACK_RPM`` per
+    drive, the elapsed time since its last accepted setpoint held between ``setpoint_period_s`` and
+    ``watchdog_timeout_s`` (firmware_sim/motion.py). The jump is larger than the most it ever allows
+    where the drive's range leaves room for that (the host: 45.2 rpm on ω_v), else twice what it
+    allows right after the controller's frame, which is when the rogue sends. Inside the VM both
+    times are scaled by the measured slowdown (``VM_SCALED_KEYS``), and so are the steps allowed: a
+    fixed jump (60 rpm on ω_r, refused on the host) was allowed there (60.2 rpm at a factor of 10).
+    The vibration drive's range leaves the most room inside the envelope.
+    """
+    timing, vibration = mill.config.timing, mill.config.drives.vibration
+
+    def allowed_rpm(elapsed_s: float) -> float:
+        return ACCEL_SLACK_FACTOR * vibration.max_accel_rpm_s * elapsed_s + ACCEL_SLACK_RPM
+
+    for step_rpm in (allowed_rpm(timing.watchdog_timeout_s) + 10.0, 2.0 * allowed_rpm(timing.setpoint_period_s)):
+        target = (LOW_RPM[0], LOW_RPM[1] + step_rpm)
+        if target[1] < vibration.max_speed_rpm and mill.envelope.check(*target, None).ok:
+            return target
+    raise AssertionError(
+        f"no raw jump fits inside the envelope at this time scale: setpoint_period_s = {timing.setpoint_period_s} s "
+        f"lets the node allow {allowed_rpm(timing.setpoint_period_s):.1f} rpm per step on ω_v from {LOW_RPM[1]} rpm"
+    )
+
+
 @pytest.mark.parametrize(
-    ("case", "rotary_rpm", "vibration_rpm", "refusal"),
+    ("case", "refusal"),
     [
-        ("over_limit", 300.0, LOW_RPM[1], RefusalCode.ENVELOPE),  # limit 149.3 rpm at ω_v = 300
-        ("raw_jump", LOW_RPM[0] + 60.0, LOW_RPM[1], RefusalCode.ACCEL_LIMIT),  # inside, but a 60 rpm step
+        ("over_limit", RefusalCode.ENVELOPE),  # 300 rpm: the limit is 149.3 rpm at ω_v = 300
+        ("raw_jump", RefusalCode.ACCEL_LIMIT),  # inside, but a step larger than the drive may take
     ],
 )
 def test_rogue_senders_setpoint_refused_by_the_node(
@@ -210,12 +238,11 @@ def test_rogue_senders_setpoint_refused_by_the_node(
     transport: Transport,
     capsys: pytest.CaptureFixture[str],
     case: str,
-    rotary_rpm: float,
-    vibration_rpm: float,
     refusal: RefusalCode,
 ) -> None:
     mill, probe = bus_mill, probe_of(bus_mill)
     mill.run_at(*LOW_RPM)
+    rotary_rpm, vibration_rpm = (300.0, LOW_RPM[1]) if case == "over_limit" else raw_jump_target(mill)
     rogue = Setpoints(rotary_rpm=rotary_rpm, vibration_rpm=vibration_rpm, furnace_c=25.0, heater_on=False)
 
     # The rogue copies the controller's alive counter, so its frame passes E2E and meets the node's own check.
@@ -397,7 +424,9 @@ def test_babbling_node_controller_stays_responsive_or_trips_with_a_named_cause(
     mill.run_at(*LOW_RPM)
     invalid_before = mill.status()["invalid_frames"]
 
-    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ)
+    # In the VM the babble is slowed by the measured slowdown: the same load relative to the machine (a node and
+    # a controller 25x slower than the host's cannot write, or read, 1000 frames/s; the host tier runs 1000 Hz).
+    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ / bound_scale())
     deadline = time.monotonic() + mill.timeout(2.0)
     while time.monotonic() < deadline:  # the API keeps answering under the babble
         during = mill.status()
