@@ -67,7 +67,9 @@ STANDSTILL_RPM = 1.0
 SCHEDULING_ALLOWANCE_S = 0.05
 """Added to every reaction bound on the host (s): late wake-ups of non-real-time processes on a loaded machine."""
 POLL_S = 0.02
-"""How often the wait helpers look again (s)."""
+"""How often the wait helpers look again (s), times ``bound_scale()``: in the VM each status request costs the
+service (whose control loop shares its process) the measured factor times the host's CPU, so polling at the
+host's rate would load the process under test that much more."""
 
 
 # --- bounds ---------------------------------------------------------------------------------------------------
@@ -228,16 +230,31 @@ def _scale_keys(text: str, factor: float) -> str:
     return text
 
 
-def write_config(directory: Path, transport: Transport) -> Path:
+def _dilate_drives(text: str, factor: float) -> str:
+    """``text`` with both drives' ``max_accel_rpm_s`` divided by ``factor``."""
+    text, found = re.subn(
+        r"^(max_accel_rpm_s\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) / factor:g}", text, flags=re.MULTILINE
+    )
+    assert found == 2, "the packaged mill.toml should set max_accel_rpm_s for the rotary and the vibration drive"
+    return text
+
+
+def write_config(directory: Path, transport: Transport, *, dilate_drives: bool = False) -> Path:
     """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
 
     Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (the measured
-    slowdown): the VM checks behaviour and frame flow, the host the tight timing.
+    slowdown): the VM checks behaviour and frame flow, the host the tight timing. ``dilate_drives``
+    also divides the drives' accelerations by it there, so that time is dilated throughout: a rate
+    rule (the node's step bound: its rate × its window, the watchdog timeout) then allows in rpm what
+    it allows on the host, at the cost of ramps that many times longer. For the scenarios whose
+    subject is that rule; the others keep the host's drives.
     """
     text = packaged_file("mill.toml").read_text(encoding="utf-8")
     head = text.partition("[bus]")[0]
     if bound_scale() > 1.0:
         head = _scale_keys(head, bound_scale())
+        if dilate_drives:
+            head = _dilate_drives(head, bound_scale())
     sections = {
         "bus": transport.bus_config_fields(),
         "service": {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")},
@@ -360,7 +377,7 @@ class Probe:
                 return found[0]
             if time.monotonic() > deadline:
                 pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s")
-            time.sleep(POLL_S)
+            time.sleep(POLL_S * bound_scale())
 
     def latest(self, kind: type[MillMessage]) -> Any:
         """The newest decoded message of ``kind`` (None before the first)."""
@@ -395,7 +412,7 @@ def wait_for(condition: Callable[[], Any], timeout_s: float, what: str | Callabl
             detail = f" (last error: {error})" if error else ""
             described = what() if callable(what) else what
             pytest.fail(f"timed out after {timeout_s:.1f} s waiting for {described}{detail}")
-        time.sleep(POLL_S)
+        time.sleep(POLL_S * bound_scale())
 
 
 class Mill:
@@ -406,10 +423,10 @@ class Mill:
     reaction-time bounds.
     """
 
-    def __init__(self, transport: Transport, spawn: Spawner, directory: Path) -> None:
+    def __init__(self, transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> None:
         self.transport = transport
         self.spawn = spawn
-        self.config_path = write_config(directory, transport)
+        self.config_path = write_config(directory, transport, dilate_drives=dilate_drives)
         self.config = load_config(self.config_path).config
         self.codec = default_codec()
         self.bounds = Bounds(self.config, self.codec)
@@ -529,9 +546,9 @@ class Mill:
 
 
 @contextlib.contextmanager
-def mill_on(transport: Transport, spawn: Spawner, directory: Path) -> Iterator[Mill]:
-    """A started mill on ``transport``, torn down afterwards."""
-    mill = Mill(transport, spawn, directory)
+def mill_on(transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> Iterator[Mill]:
+    """A started mill on ``transport``, torn down afterwards (``dilate_drives``: see :func:`write_config`)."""
+    mill = Mill(transport, spawn, directory, dilate_drives=dilate_drives)
     try:
         mill.start()
         yield mill

@@ -21,7 +21,7 @@ from millctl.client import Client
 from millctl.protocol import DriveTelemetry, FaultCode, NodeState, NodeStatus, ProtocolError, default_codec
 from millctl.records import read_records
 from tests.hil.conftest import _live_group_members
-from tests.hil.scenario_support import write_config
+from tests.hil.scenario_support import bound_scale, write_config
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -38,7 +38,7 @@ def wait_for(condition: Any, timeout_s: float, what: str) -> None:
         with contextlib.suppress(Exception):
             if condition():
                 return
-        time.sleep(0.05)
+        time.sleep(0.05 * bound_scale())  # in the VM a status request costs the service ~25x the host's CPU
     pytest.fail(f"timed out after {timeout_s:.0f} s waiting for {what}")
 
 
