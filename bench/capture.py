@@ -24,10 +24,11 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from millctl.api.enums import ControllerState
 from millctl.client import Client
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
@@ -65,16 +66,22 @@ def write_config(directory: Path) -> Path:
     return path
 
 
-def _wait(cond: Any, timeout_s: float, what: str) -> Any:
+def _wait(cond: Callable[[], object], timeout_s: float, what: str) -> None:
+    """Poll ``cond`` until it is true (errors while the service starts count as not yet)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         try:
-            if result := cond():
-                return result
+            if cond():
+                return
         except Exception:  # the service is still starting
             pass
         time.sleep(0.05)
     raise TimeoutError(f"timed out waiting for {what}")
+
+
+def _near(measured_rpm: float | None, target_rpm: float) -> bool:
+    """Whether a measured speed (None before the node reports one) is within 2 rpm of the target."""
+    return measured_rpm is not None and abs(measured_rpm - target_rpm) < 2.0
 
 
 def capture(window_s: float) -> dict[str, Any]:
@@ -96,13 +103,13 @@ def capture(window_s: float) -> dict[str, Any]:
         bus = open_bus(config.bus)
         client = Client(directory / "mill.sock", name="bench")
         try:
-            _wait(lambda: client.status()["state"] == "DISABLED", 30.0, "the controller to see the node")
+            _wait(lambda: client.status().state == ControllerState.DISABLED, 30.0, "the controller to see the node")
             client.take_control()
             client.arm()
-            _wait(lambda: client.status()["state"] == "ARMED", 10.0, "ARMED")
+            _wait(lambda: client.status().state == ControllerState.ARMED, 10.0, "ARMED")
             client.set_speeds(*RUN_RPM)
-            _wait(lambda: abs(client.status()["measured_rotary_rpm"] - RUN_RPM[0]) < 2.0, 60.0, "the run speed")
-            state = client.status()["state"]
+            _wait(lambda: _near(client.status().measured_rotary_rpm, RUN_RPM[0]), 60.0, "the run speed")
+            state = client.status().state
             counts: Counter[int] = Counter()
             bits: Counter[int] = Counter()
             while bus.recv(0.0) is not None:  # drain what queued before the window

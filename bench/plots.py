@@ -13,6 +13,7 @@ STYLE = {
     "legacy": ("s-", "paper: fixed dt, end-point average, dt sweep"),
     "legacy-interp": ("^-", "paper + linear interpolation, dt sweep"),
     "legacy-arcs": ("D-", "paper's q-arc wall, q sweep"),
+    "legacy-compiled": ("s--", "paper: fixed dt, compiled (numba) like exact, dt sweep"),
     "ivp": ("v-", "solve_ivp DOP853 + events, rtol sweep"),
 }
 PANELS = (

@@ -64,6 +64,7 @@ def sweeps(quick: bool) -> list[Setting]:
     out = [Setting("exact", f"tol={t:g}" if t else "tol=4ulp", {"tol": t}) for t in tols]
     out += [Setting("exact-reference", f"tol={t:g}" if t else "tol=4ulp", {"tol": t}) for t in (1e-9, 0.0)]
     out += [Setting("legacy", f"dt={d:g}", {"dt": d}) for d in dts]
+    out += [Setting("legacy-compiled", f"dt={d:g}", {"dt": d}) for d in dts]
     out += [Setting("legacy-interp", f"dt={d:g}", {"dt": d}) for d in interp_dts]
     out += [Setting("legacy-arcs", f"q={q} dt={arcs_dt:g}", {"dt": arcs_dt, "q": q}) for q in qs]
     out += [Setting("ivp", f"rtol={t:g}", {"tol": t}) for t in ivp_tols]
@@ -252,7 +253,7 @@ def headline(summary: list[dict[str, Any]], key: str = "time_s", exact_method: s
     """
     exact = _front(summary, exact_method, key)
     out: dict[str, Any] = {"error": key}
-    for baseline in ("legacy", "legacy-arcs", "legacy-interp"):
+    for baseline in ("legacy", "legacy-arcs", "legacy-interp", "legacy-compiled"):
         pts = [
             (s["setting"], s["seconds_per_event"], s[f"{key}_median"])
             for s in summary

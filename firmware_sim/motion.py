@@ -2,9 +2,10 @@
 
 Every Setpoints frame is re-checked here (SAFETY.md item 12, defence in
 depth) with the one limit module, :mod:`millctl.safety`: the envelope
-(``Envelope.check``) and a step limit per drive, so that a sender that
-bypasses the controller cannot jump. The node never clamps: a refused frame
-changes nothing.
+(``Envelope.check``) and a rate bound per drive (:class:`~millctl.safety.slew.SlewBudget`),
+so that a sender that bypasses the controller can neither jump nor walk the
+setpoint faster than the drive's rate by sending more often. The node never
+clamps: a refused frame changes nothing.
 
 The controlled stop (stop category 1) is planned by the same
 :class:`~millctl.safety.RampPlanner` as the controller's ramps, from the
@@ -17,11 +18,12 @@ from __future__ import annotations
 from millctl.config.models import MillConfig
 from millctl.protocol.messages import RefusalCode, Setpoints
 from millctl.safety import STANDSTILL, Envelope, RampPlanner, SpeedPoint, Trajectory, Verdict
+from millctl.safety.slew import SlewBudget
 
 ACCEL_SLACK_FACTOR = 1.5
-"""A setpoint step may be this many times the drive's max acceleration × the elapsed time ..."""
+"""Accepted setpoints may move at most this many times the drive's max acceleration (rpm/s) over any window ..."""
 ACCEL_SLACK_RPM = 0.2
-"""... plus this much (rpm, two steps of the wire's 0.1 rpm resolution)."""
+"""... plus a burst of that rate × ``timing.watchdog_timeout_s`` and this much (rpm, two steps of the 0.1 rpm grid)."""
 STOP_SETTLE_TIME_CONSTANTS = 3.0
 """Dwell after each axis of the stop, in the slower drive's time constants, so the lagging drive follows."""
 
@@ -39,18 +41,24 @@ def refusal_code(verdict: Verdict, envelope: Envelope) -> RefusalCode:
 
 
 class Motion:
-    """The node's commanded speed pair (rpm) and the last accepted setpoint (times in s)."""
+    """The node's commanded speed pair (rpm), the last accepted setpoint and its rate bound (times in s)."""
 
     def __init__(self, config: MillConfig, envelope: Envelope) -> None:
         self.envelope = envelope
-        self._timing = config.timing
         drives = config.drives
         self.max_accel_rpm_s = (drives.rotary.max_accel_rpm_s, drives.vibration.max_accel_rpm_s)
+        self.slew = tuple(
+            SlewBudget(
+                rate_per_s=accel * ACCEL_SLACK_FACTOR,
+                burst=accel * ACCEL_SLACK_FACTOR * config.timing.watchdog_timeout_s + ACCEL_SLACK_RPM,
+            )
+            for accel in self.max_accel_rpm_s
+        )
+        """The rate bound of (ω_r, ω_v): refills at 1.5 × max accel, holds at most its burst."""
         settle_s = STOP_SETTLE_TIME_CONSTANTS * max(drives.rotary.time_constant_s, drives.vibration.time_constant_s)
         self.planner = RampPlanner(envelope, settle_s=settle_s)
         self.accepted = STANDSTILL
         """The last accepted setpoint pair (rpm); standstill after boot, ARM, a stop or RESET."""
-        self.accepted_at_s = 0.0
         self.stop: Trajectory | None = None
         """The controlled stop being followed, if any."""
         self.stop_started_s = 0.0
@@ -58,38 +66,43 @@ class Motion:
     def reset(self, now_s: float) -> None:
         """Forget setpoints and stops: command standstill from ``now_s``."""
         self.accepted = STANDSTILL
-        self.accepted_at_s = now_s
         self.stop = None
+        for budget in self.slew:
+            budget.refill(now_s)
 
     def check(self, setpoint: Setpoints, now_s: float) -> RefusalCode:
         """Re-check one setpoint frame: the envelope, then the step from the last accepted setpoint.
 
-        The elapsed time in the step limit is max(time since the last accepted
-        setpoint, ``timing.setpoint_period_s``), capped at
-        ``timing.watchdog_timeout_s`` so that a sender that waits cannot bank
-        a large step (the drives slew both axes at once; only small steps
-        keep that path inside the envelope).
+        Each drive's step must fit its :class:`SlewBudget`: over any window of
+        length T the accepted setpoints move at most 1.5 × max accel × T plus
+        a burst of 1.5 × max accel × ``timing.watchdog_timeout_s`` + 0.2 rpm,
+        however many frames are sent. A sender that waits cannot bank more
+        than the burst (the drives slew both axes at once; only small steps
+        keep that path inside the envelope); one that sends more often gets no
+        more.
         """
         furnace_c = setpoint.furnace_c if setpoint.heater_on else None
         verdict = self.envelope.check(setpoint.rotary_rpm, setpoint.vibration_rpm, furnace_c)
         code = refusal_code(verdict, self.envelope)
         if code is not RefusalCode.NONE:
             return code
-        timing = self._timing
-        elapsed_s = min(max(now_s - self.accepted_at_s, timing.setpoint_period_s), timing.watchdog_timeout_s)
-        steps = (
-            abs(setpoint.rotary_rpm - self.accepted.omega_r_rpm),
-            abs(setpoint.vibration_rpm - self.accepted.omega_v_rpm),
-        )
-        for step, accel in zip(steps, self.max_accel_rpm_s, strict=True):
-            if step > accel * elapsed_s * ACCEL_SLACK_FACTOR + ACCEL_SLACK_RPM:
+        for step, budget in zip(self._steps(setpoint), self.slew, strict=True):
+            if not budget.allows(step, now_s):
                 return RefusalCode.ACCEL_LIMIT
         return RefusalCode.NONE
 
     def accept(self, setpoint: Setpoints, now_s: float) -> None:
-        """Make a checked setpoint the command."""
+        """Make a checked setpoint the command, its steps spent from the rate bound."""
+        for step, budget in zip(self._steps(setpoint), self.slew, strict=True):
+            budget.spend(step, now_s)
         self.accepted = SpeedPoint(setpoint.rotary_rpm, setpoint.vibration_rpm)
-        self.accepted_at_s = now_s
+
+    def _steps(self, setpoint: Setpoints) -> tuple[float, float]:
+        """The step of each drive (rpm) from the last accepted setpoint."""
+        return (
+            setpoint.rotary_rpm - self.accepted.omega_r_rpm,
+            setpoint.vibration_rpm - self.accepted.omega_v_rpm,
+        )
 
     def begin_stop(self, now_s: float) -> None:
         """Plan the controlled stop from the present command (kept if one is already under way)."""

@@ -41,6 +41,7 @@ from httpx_sse import ServerSentEvent, aconnect_sse, connect_sse
 from pydantic import BaseModel
 
 from millctl.api import (
+    BusHealthOut,
     CheckOut,
     CommandOut,
     ControlOut,
@@ -94,6 +95,16 @@ def describe_mill(service: ServiceOut) -> str:
     kind = "SIMULATED mill (embedded node)" if service.simulated else "real bus"
     return (f"mill {service.mill_name!r} on {service.bus_interface}:{service.bus_channel} ({kind}), "
             f"config {service.config_path}, socket {service.socket_path}")
+
+
+def describe_bus_health(health: BusHealthOut) -> str:
+    """One line of the CAN controller's condition and error counts (``millctl status``, the TUI, ``bus check``)."""
+    counters = "" if health.tx_error_counter is None else (
+        f"   TEC {health.tx_error_counter} REC {health.rx_error_counter}"
+    )
+    return (f"{health.condition}   error frames {health.error_frames} (bus {health.bus_errors}, no ACK "
+            f"{health.ack_errors}, controller {health.controller_errors})   error-passive "
+            f"{health.error_passive_count}×, bus-off {health.bus_off_count}×{counters}")
 
 
 def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
@@ -509,6 +520,7 @@ __all__ = [
     "ServiceUnavailable",
     "StreamItem",
     "default_socket_path",
+    "describe_bus_health",
     "describe_mill",
     "raise_for_error",
     "read_recipe_text",

@@ -6,8 +6,9 @@ return them; the CLI and the TUI read them. Nothing here imports the
 controller, so every part of millctl may import it.
 """
 
-from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState, StreamKind
+from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, StreamKind
 from millctl.api.models import (
+    BusHealthOut,
     BusReceiveOut,
     CheckOut,
     CheckRequest,
@@ -26,6 +27,7 @@ from millctl.api.models import (
     RecipeProgress,
     RecipeRunRequest,
     Refusal,
+    RegimeOut,
     ServiceOut,
     SetpointsRequest,
     StatusOut,
@@ -38,6 +40,8 @@ API_VERSION = "v1"
 
 __all__ = [
     "API_VERSION",
+    "BusCondition",
+    "BusHealthOut",
     "BusReceiveOut",
     "CheckOut",
     "CheckRequest",
@@ -59,6 +63,7 @@ __all__ = [
     "RecipeProgress",
     "RecipeRunRequest",
     "Refusal",
+    "RegimeOut",
     "RunState",
     "ServiceOut",
     "SetpointsRequest",

@@ -27,6 +27,19 @@ class ControllerState(enum.StrEnum):
     """A trip latched: only reset (at standstill) leaves it."""
 
 
+class BusCondition(enum.StrEnum):
+    """The CAN controller's fault-confinement state (ISO 11898-1)."""
+
+    ERROR_ACTIVE = "error-active"
+    """Normal: error counters below 96."""
+    ERROR_WARNING = "error-warning"
+    """An error counter reached 96: errors are frequent."""
+    ERROR_PASSIVE = "error-passive"
+    """An error counter reached 128: the controller no longer signals errors actively."""
+    BUS_OFF = "bus-off"
+    """Transmit error counter past 255: the controller takes no part in the bus."""
+
+
 class RunState(enum.StrEnum):
     """Where a recipe run is (docs/operations.md#recipes)."""
 
@@ -72,6 +85,8 @@ class EventKind(enum.StrEnum):
     """The service started, stopped or failed."""
     RECORDS = "records"
     """Records could not be written (a full or failing disk), or can be again."""
+    BUS = "bus"
+    """The CAN controller's condition changed: error-warning, error-passive, bus-off, back to error-active."""
 
 
 class ErrorCode(enum.StrEnum):
@@ -100,4 +115,4 @@ class StreamKind(enum.StrEnum):
     """An :class:`~millctl.api.models.EventOut`, as it happens (its ``id`` is its sequence number)."""
 
 
-__all__ = ["ControllerState", "ErrorCode", "EventKind", "RunState", "StreamKind"]
+__all__ = ["BusCondition", "ControllerState", "ErrorCode", "EventKind", "RunState", "StreamKind"]

@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from millctl.api.enums import ControllerState, ErrorCode, EventKind, RunState
+from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState
 
 
 class Strict(BaseModel):
@@ -74,6 +74,27 @@ class BusReceiveOut(Strict):
     last_error: str = Field(description="the latest receive error or malformed frame (empty before the first)")
 
 
+class BusHealthOut(Strict):
+    """The CAN controller's condition and error counts since start (:class:`millctl.protocol.bus_health.BusHealth`)."""
+
+    interface: str = Field(description="the python-can interface (bus.interface)")
+    condition: BusCondition = Field(description="error-active, error-warning, error-passive or bus-off")
+    state_source: str = Field(description="how the condition is known: error frames, and the adapter's state "
+                              "where its driver reports one")
+    error_frames: int = Field(description="CAN error frames")
+    bus_errors: int = Field(description="protocol violations and bus errors (bit, stuff, form, CRC)")
+    ack_errors: int = Field(description="frames nobody acknowledged: no other node, or a wrong bitrate")
+    arbitration_lost: int = Field(description="arbitration lost")
+    controller_errors: int = Field(description="controller problems: overflows, warning and passive levels")
+    tx_timeouts: int = Field(description="transmit timeouts")
+    error_passive_count: int = Field(description="times the controller went error-passive")
+    bus_off_count: int = Field(description="times the controller went bus-off (each trips)")
+    restarts: int = Field(description="controller restarts after bus-off")
+    tx_error_counter: int | None = Field(description="transmit error counter (TEC), null where not reported")
+    rx_error_counter: int | None = Field(description="receive error counter (REC), null where not reported")
+    last_error: str = Field(description="the latest error frame or state reading, in words (empty before the first)")
+
+
 class StatusOut(Strict):
     """A snapshot of the controller (as :class:`millctl.controller.Status`; non-finite floats as null)."""
 
@@ -113,6 +134,7 @@ class StatusOut(Strict):
     invalid_frames: int = Field(description="frames dropped as invalid")
     receive_errors: int = Field(description="failed reads and CAN error frames, counted and skipped")
     bus_receive: BusReceiveOut = Field(description="every count of the controller's bus reader")
+    bus_health: BusHealthOut = Field(description="the CAN controller's condition and error counts")
 
 
 # ---------------------------------------------------------------- envelope
@@ -123,6 +145,16 @@ class EnvelopePoint(Strict):
     limit_rotary_rpm: float | None = Field(description="enforced rotary limit, margin applied (rpm)")
     law_limit_rotary_rpm: float | None = Field(description="the law's rotary limit without margin (rpm)")
     law_is_every_cycle: bool = Field(description="true where the law bounds detachment on every cycle")
+    laws_rotary_rpm: dict[str, float | None] = Field(
+        default_factory=dict, description="every limit law's rotary limit without margin, by law name (rpm)")
+
+
+class RegimeOut(Strict):
+    """Where the law in force is not the every-cycle detachment bound (millctl.safety.regime, docs/model.md#eq-9)."""
+
+    above_vibration_rpm: float = Field(description="from this vibration speed up (rpm; 0: everywhere)")
+    summary: str = Field(description="the warning in one short line")
+    message: str = Field(description="the warning in full: where, why, what it means")
 
 
 class EnvelopeOut(Strict):
@@ -137,6 +169,8 @@ class EnvelopeOut(Strict):
     furnace_max_c: float = Field(description="highest furnace target (°C)")
     max_heating_rate_c_per_min: float = Field(description="fastest heating ramp (°C/min)")
     points: list[EnvelopePoint]
+    regime: RegimeOut | None = Field(default=None, description="where the law is not the every-cycle bound; "
+                                     "null where it is over the whole drive range")
 
 
 class CheckRequest(Strict):
@@ -302,6 +336,7 @@ class RecipeOut(Strict):
 
 
 __all__ = [
+    "BusHealthOut",
     "CheckOut",
     "CheckRequest",
     "CommandOut",
@@ -319,6 +354,7 @@ __all__ = [
     "RecipeProgress",
     "RecipeRunRequest",
     "Refusal",
+    "RegimeOut",
     "ServiceOut",
     "SetpointsRequest",
     "StatusOut",

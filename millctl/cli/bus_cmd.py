@@ -63,6 +63,32 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     convert.add_argument("input", help="bus log to read")
     convert.add_argument("output", help="file to write; its suffix picks the format")
     convert.set_defaults(handler=_convert)
+    check = sub.add_parser(
+        "check",
+        help="is the configured bus up, at its bitrate, healthy, and does the node answer? (exit 0 yes, 3 no)",
+        description="Opens the configured bus and listens (sends nothing): the interface, channel and bitrate; for "
+        "socketcan the link's own bitrate, state and error counters (ip -details link); the adapter's condition "
+        "and error frames; whether the node's NodeStatus (0x100) arrives within --listen-s. Exit 0: bus up and "
+        "node present; 3: the bus cannot be opened, is bus-off, runs at another bitrate, or the node is silent; "
+        "1: invalid configuration. docs/deployment.md#millctl-bus-check",
+    )
+    check.add_argument("--listen-s", type=_nonnegative_float, default=2.0, metavar="S",
+                       help="how long to wait for the node's NodeStatus (default 2 s; it is sent every 50 ms)")
+    check.add_argument("--json", action="store_true", help="machine-readable output")
+    check.set_defaults(handler=_check)
+    export = sub.add_parser(
+        "export-c",
+        help="write the C packers of millbus.dbc and the E2E header for a real node's firmware",
+        description="cantools' C source generator writes millbus.h/millbus.c (a struct, pack/unpack and "
+        "encode/decode per frame, C99, no allocation); millbus_e2e.h adds each frame's E2E data ID and the "
+        "CRC-8/SAE-J1850 as millctl computes it. The rules a firmware must keep: docs/protocol.md"
+        "#for-a-real-nodes-firmware. Existing files are never overwritten unless --force.",
+    )
+    export.add_argument("directory", help="folder to write into (made if missing)")
+    export.add_argument("--node", choices=("Node", "Controller"),
+                        help="only what this DBC node sends (pack) and receives (unpack); default: every frame")
+    export.add_argument("--force", action="store_true", help="overwrite files of an earlier export")
+    export.set_defaults(handler=_export_c)
 
 
 def _convert(args: argparse.Namespace) -> int:
@@ -72,6 +98,61 @@ def _convert(args: argparse.Namespace) -> int:
 
     count = convert_log(Path(args.input), Path(args.output))
     stdout_console().print(f"{args.input} → {args.output}: {count} frames", markup=False)
+    return int(ExitCode.OK)
+
+
+def _check(args: argparse.Namespace) -> int:
+    from millctl.client import describe_bus_health
+    from millctl.config import load_config
+    from millctl.protocol import default_codec, open_bus
+    from millctl.protocol.bus_check import check_bus
+
+    bus_config = load_config(args.config).config.bus
+    bus = open_bus(bus_config)
+    try:
+        report = check_bus(bus_config, bus, default_codec(), args.listen_s)
+    finally:
+        bus.shutdown()
+    if args.json:
+        from millctl.cli.failures import EXIT_NAMES
+
+        error = None if report.ok else {"code": EXIT_NAMES[ExitCode.BUS], "message": "; ".join(report.problems),
+                                        "exit_code": int(ExitCode.BUS)}
+        print_json(args, report.as_dict(), error)
+    else:
+        from millctl.api import BusHealthOut
+
+        out = stdout_console()
+        out.print(f"bus      {report.interface}:{report.channel}, configured {report.bitrate_bit_s} bit/s",
+                  markup=False)
+        if report.link is not None:
+            link = report.link
+            counters = "" if link["tx_error_counter"] is None else (
+                f", TEC {link['tx_error_counter']} REC {link['rx_error_counter']}, bus-off {link['bus_off']}×"
+            )
+            out.print(f"link     {link['kind']} {link['operstate']}, state {link['state'] or '—'}, bitrate "
+                      f"{link['bitrate_bit_s'] or '— (none on a vcan)'}{counters}", markup=False)
+        elif report.link_note:
+            out.print(f"link     {report.link_note}", markup=False)
+        out.print(f"adapter  {describe_bus_health(BusHealthOut.model_validate(report.health))}", markup=False)
+        node = (f"present: NodeStatus after {report.node_status_after_s:.2f} s, state {report.node_state}, first "
+                f"fault {report.node_first_fault}") if report.node_present else "ABSENT"
+        out.print(f"node     {node} ({report.frames} frames in {report.listened_s:.2f} s)", markup=False)
+    for problem in report.problems:
+        stderr_console().print(f"problem: {problem}", markup=False, style="bold red")
+    return int(ExitCode.OK if report.ok else ExitCode.BUS)
+
+
+def _export_c(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from millctl.protocol import default_codec
+    from millctl.protocol.export_c import export_c
+
+    paths = export_c(default_codec(), Path(args.directory), node=args.node, overwrite=args.force)
+    console = stdout_console()
+    for path in paths:
+        console.print(f"wrote {path}", markup=False)
     return int(ExitCode.OK)
 
 

@@ -143,7 +143,8 @@ def render_status(
     from rich.table import Table
     from rich.text import Text
 
-    from millctl.client import describe_mill
+    from millctl.api import BusCondition
+    from millctl.client import describe_bus_health, describe_mill
 
     table = Table.grid(padding=(0, 2))
     table.add_column(style="bold")
@@ -187,6 +188,8 @@ def render_status(
     )
     links = [f"{name} {_num(link.age_s, '.2f', ' s')}{' STALE' if link.stale else ''}" for name, link in s.link.items()]
     table.add_row("links", "   ".join(links))
+    healthy = s.bus_health.condition is BusCondition.ERROR_ACTIVE
+    table.add_row("CAN bus", Text(describe_bus_health(s.bus_health), style="" if healthy else "bold red"))
     for event in events:
         table.add_row(f"#{event.seq}", f"[{event.kind}] {event.source}: {event.message}")
     return table

@@ -16,12 +16,11 @@ from millctl.physics.limits import (
     LAWS,
     omega_r_max,
     regime_flags,
-    sin_alpha_bound_consistent,
-    sin_alpha_bound_printed_eq8b,
     switch_omega_v_rad_s,
     vibration_intensity,
 )
-from millctl.safety import Envelope
+from millctl.safety import Envelope, SpeedPoint
+from millctl.safety.regime import regime_warning
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
 
@@ -54,8 +53,30 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--plot",
         metavar="FILE.png",
         type=Path,
-        help="draw the counterparts of the paper's Fig. 5 and Fig. 6 (needs the plot extra)",
+        nargs="?",
+        const=Path("limits.png"),
+        help="draw which rotary speed is safe (the envelope, every law, the operating points) and the admissible "
+        "cam phase, the paper's Fig. 5 and Fig. 6 counterparts (default file: limits.png; needs the plot extra)",
     )
+    parser.add_argument(
+        "--recipe",
+        metavar="RECIPE.toml",
+        help="with --plot: mark the target of each step of this recipe (planned points)",
+    )
+    parser.add_argument(
+        "--at",
+        type=nonnegative_float,
+        nargs=2,
+        action="append",
+        metavar=("VIB_RPM", "ROT_RPM"),
+        help="with --plot: mark a planned operating point ω_v ω_r (rpm); repeat for more",
+    )
+    parser.add_argument(
+        "--live",
+        action="store_true",
+        help="with --plot: mark the measured speeds and the target of the running service",
+    )
+    parser.add_argument("--socket", metavar="PATH", help="with --live: service socket (default: from the config)")
     parser.set_defaults(handler=_run)
 
 
@@ -75,6 +96,7 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
     flags = regime_flags(envelope.law, p, omega_v)
     laws = {law.value: rad_s_to_rpm(omega_r_max(law, p, omega_v)) for law in LAWS}
     envelope_rpm = envelope.omega_r_limit_rpm(omega_v_rpm)
+    warning = regime_warning(envelope)
     every_cycle = envelope.every_cycle(omega_v_rpm)
     gamma = vibration_intensity(p, omega_v)
     rows = []
@@ -99,6 +121,13 @@ def limits_table(args: argparse.Namespace) -> dict[str, Any]:
         "rod_mass_kg": p.rod_mass_kg,
         "switch_vibration_rpm": float(rad_s_to_rpm(switch_omega_v_rad_s(p))),
         "cam": config.mill.cam.shape.value,
+        "regime": None
+        if warning is None
+        else {
+            "above_vibration_rpm": warning.above_vibration_rpm,
+            "summary": warning.summary,
+            "message": warning.message,
+        },
         "rows": rows,
     }
 
@@ -119,14 +148,8 @@ def _run(args: argparse.Namespace) -> int:
         _print_table(table)
         if "cams" in table:
             _print_cams(table)
-    not_every = [r["vibration_rpm"] for r in table["rows"] if not r["law_is_every_cycle"]]
-    if not_every:
-        stderr_console().print(
-            f"[yellow]warning:[/] the configured law {table['law']} is not the every-cycle detachment bound "
-            f"at ω_v = {', '.join(f'{v:g}' for v in not_every)} rpm (k < mω_v² above "
-            f"{table['switch_vibration_rpm']:.1f} rpm): rods may stay pinned for many cycles there. "
-            "See docs/model.md#eq-9."
-        )
+    if table["regime"] is not None:
+        stderr_console().print(f"[yellow]warning:[/] {table['regime']['message']}", highlight=False)
     return int(ExitCode.OK)
 
 
@@ -194,14 +217,15 @@ def _num(value: float) -> str:
 
 
 def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> None:
-    """Write the Fig. 5 and Fig. 6 counterparts into one PNG (atomically)."""
+    """Write the envelope figure (:mod:`millctl.cli.limits_plot`) into one PNG, atomically."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
     except ImportError:
         raise InvalidInputError("--plot needs matplotlib: pip install 'millctl[plot]'") from None
+    from millctl.cli.limits_plot import OperatingPoints, limits_figure, planned_from_pairs, planned_from_recipe
+
     if not path.parent.exists():
         raise InvalidInputError(f"--plot {path}: directory {path.parent} does not exist")
     config = load_config(args.config).config
@@ -209,48 +233,24 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
         from millctl.studies.cams import with_cam
 
         config = with_cam(config, CamShape(args.cam))
-    p = Envelope.from_config(config).params
-    w_v_rpm = np.linspace(0.0, config.drives.vibration.max_speed_rpm, 400)
-    w_v = rpm_to_rad_s(w_v_rpm)
-    fig, (ax5, ax6) = plt.subplots(1, 2, figsize=(12, 4.8), layout="constrained")
-    for law in LAWS:
-        ax5.plot(w_v_rpm, rad_s_to_rpm(omega_r_max(law, p, w_v)), label=law.value)
-    law = LimitLaw(table["law"])
-    envelope = Envelope.from_config(config, law=law)
-    ax5.fill_between(
-        w_v_rpm,
-        0,
-        envelope.omega_r_limit_rpm(w_v_rpm),
-        color="tab:green",
-        alpha=0.12,
-        label=f"envelope ({law.value}, margin {envelope.margin:.0%})",
-    )
-    ax5.axvline(table["switch_vibration_rpm"], color="grey", ls=":", label="k = mω_v²")
-    ax5.set(
-        xlabel="vibration speed ω_v (rpm)",
-        ylabel="max rotary speed ω_r,max (rpm)",
-        title="Fig. 5 counterpart: maximum permissible rotary speed",
-    )
-    ax5.legend(fontsize=8)
-    ax5.grid(alpha=0.3)
-    ax6.plot(w_v_rpm, sin_alpha_bound_printed_eq8b(p, w_v), label="printed eq. 8b (inconsistent units)")
-    bound = sin_alpha_bound_consistent(p, w_v)
-    stiff = p.spring_n_per_m > p.rod_mass_kg * w_v**2
-    ax6.plot(np.where(stiff, w_v_rpm, np.nan), bound, label="from eq. 7: lower bound on sin α (k > mω_v²)")
-    ax6.plot(np.where(~stiff, w_v_rpm, np.nan), bound, label="from eq. 7: upper bound on sin α (k < mω_v²)")
-    ax6.axhspan(-1, 1, color="grey", alpha=0.08, label="sin α ∈ [−1, 1]")
-    ax6.set(
-        xlabel="vibration speed ω_v (rpm)",
-        ylabel="bound on sin α",
-        ylim=(-12, 4),
-        title="Fig. 6 counterpart: admissible cam phase",
-    )
-    ax6.legend(fontsize=8)
-    ax6.grid(alpha=0.3)
-    fig.suptitle(
-        f"{config.name}: m = {p.rod_mass_kg * 1e3:.1f} g, r0 = {p.r0_m * 1e3:.1f} mm, "
-        f"r_d = {p.eccentricity_m * 1e3:.2f} mm, k = {p.spring_n_per_m:g} N/m"
-    )
+    envelope = Envelope.from_config(config, law=LimitLaw(table["law"]))
+    recipe, label = planned_from_recipe(args.recipe, config) if args.recipe else ((), "")
+    measured, target = _live_points(args) if args.live else (None, None)
+    points = OperatingPoints(measured, target, recipe=recipe, recipe_label=label, at=planned_from_pairs(args.at or []))
+    fig = limits_figure(envelope, config.name, points)
     write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
-    plt.close(fig)
     stderr_console().print(f"wrote {path}")
+
+
+def _live_points(args: argparse.Namespace) -> tuple[SpeedPoint | None, SpeedPoint | None]:
+    """The running service's measured speeds and target (None where it has none yet)."""
+    from millctl.client import Client
+
+    with Client(args.socket, config=args.config, name="cli-limits") as client:
+        status = client.status()
+    measured = target = None
+    if status.measured_rotary_rpm is not None and status.measured_vibration_rpm is not None:
+        measured = SpeedPoint(status.measured_rotary_rpm, status.measured_vibration_rpm)
+    if status.target_rotary_rpm is not None and status.target_vibration_rpm is not None:
+        target = SpeedPoint(status.target_rotary_rpm, status.target_vibration_rpm)
+    return measured, target

@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--alpha0-deg", type=finite_float, default=0.0, help="initial cam phase (default 0)")
     parser.add_argument(
         "--method",
-        choices=["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp"],
+        choices=["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "legacy-compiled", "ivp"],
         default="exact",
         help="collision scheme (exact: compiled; exact-reference: the numpy engine; legacy: the paper's fixed step)",
     )

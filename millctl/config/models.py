@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import enum
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from millctl.config.bus import Bus
 from millctl.units import rpm_to_rad_s
 
 G_M_S2 = 9.80665
@@ -284,25 +285,6 @@ class Timing(_Strict):
                 "(docs/protocol.md, heartbeat freshness)"
             )
         return self
-
-
-BusInterface = Literal["virtual", "socketcan", "udp_multicast", "millctl_udp_multicast"]
-
-
-class Bus(_Strict):
-    """The CAN bus, as python-can sees it (turned into a ``can.Bus`` in one place)."""
-
-    interface: BusInterface = "virtual"
-    channel: str = "millbus"
-    bitrate_bit_s: Annotated[int, Field(ge=10_000, le=1_000_000)] = 500_000
-    options: dict[str, Any] = Field(default_factory=dict)
-
-    @field_validator("channel")
-    @classmethod
-    def _channel_nonempty(cls, value: str) -> str:
-        if not value.strip():
-            raise ValueError("channel must not be empty")
-        return value
 
 
 class Service(_Strict):

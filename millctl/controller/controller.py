@@ -21,6 +21,7 @@ from millctl.config.models import MillConfig
 from millctl.controller.confirm import Confirmations, Pending
 from millctl.controller.events import Event, EventKind, EventListener
 from millctl.controller.expect import SpeedExpectation
+from millctl.controller.furnace_expect import FurnaceExpectation
 from millctl.controller.monitor import MeasuredSpeedMonitor
 from millctl.controller.states import ControllerState, StateMachine, Transition
 from millctl.controller.status import Status, build_status
@@ -47,6 +48,7 @@ from millctl.protocol import (
     default_codec,
 )
 from millctl.protocol import ControllerState as WireState
+from millctl.protocol.bus_health import BusCondition, BusHealthMonitor
 from millctl.safety import STANDSTILL, Envelope, InterlockRefused, RampPlanner, SpeedPoint, Trajectory
 from millctl.safety.commands import CONTROLLER_ALLOWS, Operation, node_change_commanded
 
@@ -96,6 +98,7 @@ class Controller:
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(self.codec, config.interlock)
         self.reader = BusReader(bus, "controller")
+        self.bus_health = BusHealthMonitor(bus, config.bus.interface)
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
         interlock = config.interlock
         self.confirmations = Confirmations(interlock)
@@ -105,6 +108,7 @@ class Controller:
             interlock.command_confirm_s + self.planner.settle_s,
             interlock.debounce_samples,
         )
+        self.furnace_expectation = FurnaceExpectation(interlock.command_confirm_s, interlock.debounce_samples)
         self._node_state: NodeState | None = None
         """The node's state in the last NodeStatus (None before the first, or after losing the node)."""
         self._estop_pending = False
@@ -395,6 +399,9 @@ class Controller:
     def _drain(self, now: float) -> None:
         """Read every frame waiting (SAFETY 22); bad input is counted by the reader, never raised (SAFETY 19)."""
         batch = self.reader.drain()
+        for error_frame in batch.error_frames:
+            self._on_bus_condition(self.bus_health.on_error_frame(error_frame))
+        self._on_bus_condition(self.bus_health.poll())
         # an E-stop from anyone is the node's to act on; it reports it in NodeStatus and we trip on that
         for frame in batch.frames:
             try:
@@ -409,6 +416,24 @@ class Controller:
                 self._on_node_status(message)
             elif isinstance(message, DriveTelemetry):
                 self._on_measured(message)
+            elif isinstance(message, FurnaceTelemetry):
+                self._on_furnace(message)
+
+    def _on_bus_condition(self, condition: BusCondition | None) -> None:
+        """A change of the CAN controller's condition: an event; bus-off trips (docs/protocol.md#bus-errors)."""
+        if condition is None:
+            return
+        health = self.bus_health.health
+        cause = health.last_error or health.state_source
+        self._emit(EventKind.BUS, "bus", f"CAN controller {condition}: {cause}", condition=condition.value,
+                   tx_error_counter=health.tx_error_counter, rx_error_counter=health.rx_error_counter)
+        if condition is BusCondition.BUS_OFF:
+            bus = self.config.bus
+            self._trip(
+                f"CAN bus-off on {bus.interface}:{bus.channel} ({cause}): the controller cannot send, the node's "
+                "watchdog stops the mill; check wiring, termination and bitrate (docs/protocol.md#bus-errors)",
+                "bus",
+            )
 
     @property
     def invalid_frames(self) -> int:
@@ -498,6 +523,15 @@ class Controller:
             self.expectation.reset()
             self._uncommanded(reason)
 
+    def _on_furnace(self, report: FurnaceTelemetry) -> None:
+        """Check the node's heater against the furnace targets commanded (in every state but DISCONNECTED)."""
+        if self.state is S.DISCONNECTED:
+            return
+        reason = self.furnace_expectation.check(self.clock.now(), report)
+        if reason is not None:
+            self.furnace_expectation.reset()
+            self._uncommanded(reason)
+
     def _check(self, now: float) -> None:
         if self.state is S.DISCONNECTED:
             return
@@ -568,6 +602,13 @@ class Controller:
             step = self.heating_rate_c_per_min / 60.0 * dt
             delta = self.furnace_target_c - self.furnace_setpoint_c
             self.furnace_setpoint_c += math.copysign(min(abs(delta), step), delta)
+        self.furnace_expectation.commanded(now, self._furnace_command())
+
+    def _furnace_command(self) -> float | None:
+        """The furnace setpoint the Setpoints frames carry now (°C, on the wire's grid); None: heater off."""
+        if self.state in (S.ARMED, S.RUNNING) and self.furnace_target_c is not None:
+            return round(self.furnace_setpoint_c, 1)
+        return None
 
     def _transmit(self, now: float) -> None:
         if now >= self._next_heartbeat_s:
@@ -577,16 +618,14 @@ class Controller:
         if now >= self._next_setpoints_s:
             self._next_setpoints_s = max(self._next_setpoints_s + self.config.timing.setpoint_period_s, now)
             if self.state in (S.ARMED, S.RUNNING):
-                heater_on = self.furnace_target_c is not None
+                furnace_c = self._furnace_command()
                 snapped = self.planner.snap(self.commanded)
                 self._send(
                     Setpoints(
                         rotary_rpm=snapped.omega_r_rpm,
                         vibration_rpm=snapped.omega_v_rpm,
-                        furnace_c=round(self.furnace_setpoint_c, 1)
-                        if heater_on
-                        else self.config.furnace.ambient_temp_c,
-                        heater_on=heater_on,
+                        furnace_c=self.config.furnace.ambient_temp_c if furnace_c is None else furnace_c,
+                        heater_on=furnace_c is not None,
                     )
                 )
 

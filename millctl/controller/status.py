@@ -57,6 +57,8 @@ class Status:
     """Reads that failed (undecodable datagrams, socket errors) plus CAN error frames: counted, skipped."""
     bus_receive: dict[str, int | str]
     """Every count of the controller's bus reader (:class:`millctl.protocol.ReceiveCounts`)."""
+    bus_health: dict[str, int | str | None]
+    """The CAN controller's condition and error counts (:class:`millctl.protocol.bus_health.BusHealth`)."""
 
     def as_dict(self) -> dict[str, Any]:
         """The snapshot as a JSON-ready dict."""
@@ -113,6 +115,7 @@ def build_status(c: Controller) -> Status:
         invalid_frames=c.invalid_frames,
         receive_errors=c.reader.counts.receive_errors + c.reader.counts.error_frames,
         bus_receive=c.reader.counts.as_dict(),
+        bus_health=c.bus_health.health.as_dict(),
     )
 
 

@@ -10,9 +10,13 @@ machine (``cache=True``):
   event loop reaches the end of what has been searched (lazy);
 * the wall gap of a departed rod with its triple root divided out (:func:`~.flight.departure_wall_gap`);
 * the bracketing scan of every pair (separation, exact derivative, the second-order
-  margin that lets a grazing minimum be skipped only when it provably stays apart);
+  margin that lets a grazing minimum be skipped only when it provably stays apart), with
+  held rods turned and flying rods' cam phases advanced by phasors on the scan's grid;
+* a flight evaluated in its own time τ and its departure's cam phase (no absolute phase);
 * Brent's bracketed root finder, a line-by-line port of scipy's ``brentq`` (same
   tolerances as the reference), so both engines stop on the same test.
+
+No array is allocated per scene: a batch makes its work arrays once (:func:`_scratch`).
 
 Event loop: every rod starts pinned at eq. 11's angle; rods detach at their own
 times (``rods="all"``, :func:`first_impact_compiled`) or only rod 0 does, the others
@@ -114,13 +118,13 @@ _RTOL = 4.0 * 2.220446049250313e-16
 _MAXITER = 200
 _MAX_DEPTH = 80
 _NEAR_ZERO = 1e-9
+_RESYNC = 16  # the contact scan's phasors are recomputed from sin and cos every this many steps (a few ulp apart)
 _TWO_PI = 2.0 * math.pi
 # state columns of a rod: flying flag, t0, pinned angle at t0, x0, y0, ux0, uy0 (vial frame), n_d, sin α0, cos α0
 (_S_FLY, _S_T0, _S_TH, _S_X, _S_Y, _S_UX, _S_UY, _S_ND, _S_SA, _S_CA) = range(10)
 _STATE_COLUMNS = 10
 # function codes for the root finder
 _F_N, _F_DN, _F_NEG_N, _F_NEG_DN, _F_SIGN_SEP, _F_DSEP = range(6)
-_INV_FACT = np.array([1.0 / math.factorial(k) for k in range(40)])
 
 
 def scene_row(scene: Scene) -> FloatArray:
@@ -160,8 +164,11 @@ def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyp
 
 
 @njit(cache=True)
-def _trig_rows(p, n):  # type: ignore[no-untyped-def]
-    """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling."""
+def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
+    """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling.
+
+    ``out``: an array of at least n rows to fill (its first n rows are returned), else a new one.
+    """
     wr, wv, a0 = p[_WR], p[_WV], p[_A0]
     if p[_PAPER] != 0.0:
         constant = 2.0 * p[_R0] * wr * wr
@@ -170,7 +177,7 @@ def _trig_rows(p, n):  # type: ignore[no-untyped-def]
         constant = p[_R0] * wr * wr
         coupling = p[_RD] * wv * wv
     half = 0.5 * coupling
-    rows = np.zeros((n, _TRIG_COLUMNS))
+    rows = np.zeros((n, _TRIG_COLUMNS)) if out is None else out[:n]
     for i in range(n):
         th0 = p[_TH0] + i * 2.0 * math.pi / n
         rows[i, 0], rows[i, _T_COUNT] = constant, 3.0
@@ -189,6 +196,20 @@ def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
         w = tr[i, _TW + k]
         total += tr[i, _TA + k] * w**order * math.cos(w * t + tr[i, _TP + k] + shift)
     return sign * total
+
+
+@njit(cache=True)
+def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
+    """Sign × (value, first, second derivative) of row i at t: one sine and cosine per term serve all three."""
+    f0, f1, f2 = tr[i, 0], 0.0, 0.0
+    for k in range(int(tr[i, _T_COUNT])):
+        a, w = tr[i, _TA + k], tr[i, _TW + k]
+        x = w * t + tr[i, _TP + k]
+        c, s = math.cos(x), math.sin(x)
+        f0 += a * c
+        f1 -= a * w * s
+        f2 -= a * w * w * c
+    return sign * f0, sign * f1, sign * f2
 
 
 @njit(cache=True)
@@ -211,34 +232,51 @@ def _rel(p, st, i, t):  # type: ignore[no-untyped-def]
         c, s = math.cos(th), math.sin(th)
         return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
     tau = t - st[i, _S_T0]
+    x = p[_WV] * tau
+    return _flying_rel(p, st, i, tau, math.cos(x), math.sin(x))
+
+
+@njit(cache=True)
+def _flying_rel(p, st, i, tau, c, s):  # type: ignore[no-untyped-def]
+    """(x, y, vx, vy) of flying rod i, τ after its departure, given c, s = cos, sin of the cam's turn ω_v τ since.
+
+    Eq. 10 in the flight's own time: sin(α_d + ω_vτ) − sin α_d = sin α_d (c − 1) + cos α_d s, so no absolute
+    time or phase enters (a long run loses nothing to the size of ω_v t).
+    """
     r_d, w, g = p[_RD], p[_WV], p[_G]
-    a0 = p[_A0] + w * st[i, _S_T0]
     sa, ca = st[i, _S_SA], st[i, _S_CA]
-    h = -0.5 * g * tau * tau - r_d * (math.sin(a0 + w * tau) - sa - w * tau * ca)
-    dh = -g * tau - r_d * w * (math.cos(a0 + w * tau) - ca)
+    h = -0.5 * g * tau * tau - r_d * (sa * (c - 1.0) + ca * (s - w * tau))
+    dh = -g * tau - r_d * w * (ca * (c - 1.0) - sa * s)
     ux, uy = st[i, _S_UX], st[i, _S_UY]
     return st[i, _S_X] + ux * tau, st[i, _S_Y] + uy * tau + h, ux, uy + dh
 
 
+# Taylor coefficients of the two small-x series below, in powers of x² (Horner's rule)
+_C2_SERIES = np.array([(-1.0) ** k / math.factorial(2 * k) for k in range(2, 12)])
+_S3_SERIES = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(1, 12)])
+
+
+@njit(cache=True)
+def _horner(coefficients, y):  # type: ignore[no-untyped-def]
+    total = 0.0
+    for k in range(coefficients.size - 1, -1, -1):
+        total = total * y + coefficients[k]
+    return total
+
+
 @njit(cache=True)
 def _c2_plus_half_over_x(x):  # type: ignore[no-untyped-def]
-    """((cos x − 1)/x² + ½)/x, stable at small x (flight.py)."""
+    """((cos x − 1)/x² + ½)/x, stable at small x (flight.py): x·Σ_{k≥2} (−x²)^(k−2)/(2k)! for |x| < 1."""
     if abs(x) < 1.0:
-        total = 0.0
-        for k in range(2, 12):
-            total += (-1.0) ** k * x ** (2 * k - 3) * _INV_FACT[2 * k]
-        return total
+        return x * _horner(_C2_SERIES, x * x)
     return ((math.cos(x) - 1.0) / (x * x) + 0.5) / x
 
 
 @njit(cache=True)
 def _s3(x):  # type: ignore[no-untyped-def]
-    """(sin x − x)/x³, stable at small x (flight.py)."""
+    """(sin x − x)/x³, stable at small x (flight.py): Σ_{k≥1} (−x²)^(k−1)/(2k+1)! for |x| < 1."""
     if abs(x) < 1.0:
-        total = 0.0
-        for k in range(1, 12):
-            total += (-1.0) ** k * x ** (2 * k - 2) * _INV_FACT[2 * k + 1]
-        return total
+        return _horner(_S3_SERIES, x * x)
     return (math.sin(x) - x) / (x * x * x)
 
 
@@ -359,24 +397,21 @@ def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
 def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-def]
     """On [a, b] f' is monotone: split at f's critical point and look for a falling zero (inf: none)."""
     f_code, df_code = (_F_N, _F_DN) if sign > 0.0 else (_F_NEG_N, _F_NEG_DN)
-    fa, fb = _trig(tr, i, a, 0, sign), _trig(tr, i, b, 0, sign)
+    fa, d1a, _ = _trig012(tr, i, a, sign)
+    fb, d1b, _ = _trig012(tr, i, b, sign)
     if fa > 0.0 and fb < 0.0:  # f' monotone: exactly one falling zero in [a, b], no need for the critical point
         return _brentq(f_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
-    d1a, d1b = _trig(tr, i, a, 1, sign), _trig(tr, i, b, 1, sign)
     if fa > 0.0 and fb > 0.0 and d1a < 0.0 < d1b:
         # convex here: f lies above both end tangents; where they cross is a lower bound on min f
         t_x = (fb - fa + d1a * a - d1b * b) / (d1a - d1b)
         if fa + d1a * (t_x - a) > 1e-13 * (tr[i, 0] + _trig_bound(tr, i, 0)):
             return math.inf
-    ends = np.empty(3)
-    ends[0] = a
-    count = 1
+    split = b  # f's critical point when f' changes sign in [a, b]: the two pieces [a, split], [split, b]
     if (d1a < 0.0 < d1b) or (d1a > 0.0 > d1b):
-        ends[1] = _brentq(df_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
-        count = 2
-    ends[count] = b
-    for k in range(count):
-        s, e = ends[k], ends[k + 1]
+        split = _brentq(df_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
+    for s, e in ((a, split), (split, b)):
+        if s >= e:
+            continue
         fs, fe = _trig(tr, i, s, 0, sign), _trig(tr, i, e, 0, sign)
         if fs > 0.0 and fe < 0.0:
             return _brentq(f_code, p, st, tr, i, 0, s, e, _xtol(s, e, 0.0), _RTOL)
@@ -395,29 +430,27 @@ def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
             w_max = max(w_max, abs(tr[i, _TW + k]))
     cells = 1 if w_max == 0.0 else int(min(max(math.ceil((t1 - t0) * w_max * 2.0 / math.pi), 1), 4096))
     width = (t1 - t0) / cells
-    stack_a = np.empty(2 * _MAX_DEPTH + 4)
-    stack_b = np.empty(2 * _MAX_DEPTH + 4)
-    stack_d = np.empty(2 * _MAX_DEPTH + 4, dtype=np.int64)
+    stack = np.empty((2 * _MAX_DEPTH + 4, 3))  # (a, b, depth) of the intervals still to look at, leftmost on top
     for c in range(cells):
         a = t0 + c * width
         b = t1 if c == cells - 1 else t0 + (c + 1) * width
-        stack_a[0], stack_b[0], stack_d[0] = a, b, 0
+        stack[0, 0], stack[0, 1], stack[0, 2] = a, b, 0.0
         top = 1
         while top > 0:
             top -= 1
-            a, b, depth = stack_a[top], stack_b[top], stack_d[top]
+            a, b, depth = stack[top, 0], stack[top, 1], int(stack[top, 2])
             h = b - a
             mid = 0.5 * (a + b)
-            f0, f1 = _trig(tr, i, mid, 0, sign), _trig(tr, i, mid, 1, sign)
+            f0, f1, f2 = _trig012(tr, i, mid, sign)
             if f0 - abs(f1) * 0.5 * h - m2 * h * h * 0.125 > 0.0:
                 continue
-            if abs(_trig(tr, i, mid, 2, sign)) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
+            if abs(f2) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
                 root = _monotone_pieces_root(p, st, tr, i, sign, a, b)
                 if root < math.inf:
                     return root
                 continue
-            stack_a[top], stack_b[top], stack_d[top] = mid, b, depth + 1
-            stack_a[top + 1], stack_b[top + 1], stack_d[top + 1] = a, mid, depth + 1
+            stack[top, 0], stack[top, 1], stack[top, 2] = mid, b, depth + 1
+            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = a, mid, depth + 1
             top += 2
     return math.inf
 
@@ -547,10 +580,16 @@ def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _earliest_contact(p, st, tr, n, t_start, t_end, tol):  # type: ignore[no-untyped-def]
+def _turned(c, s, c_step, s_step):  # type: ignore[no-untyped-def]
+    """cos, sin of φ + δ from those of φ and δ."""
+    return c * c_step - s * s_step, s * c_step + c * s_step
+
+
+@njit(cache=True)
+def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: ignore[no-untyped-def]
     """(time, rod, partner) of the first contact of a flying rod in [t_start, t_end]; time inf if none."""
-    pi = np.empty(n * (n + 1), dtype=np.int64)
-    pj = np.empty(n * (n + 1), dtype=np.int64)
+    pairs, pair_ids, rods, rod_ids = scratch[0], scratch[1], scratch[2], scratch[3]
+    pi, pj = pair_ids[:, 0], pair_ids[:, 1]
     count = 0
     for i in range(n):
         if st[i, _S_FLY] != 0.0:
@@ -564,43 +603,87 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol):  # type: ignore[no-unt
                 continue
             pi[count], pj[count] = i, j
             count += 1
-    s_prev = np.empty(count)
-    ds_prev = np.empty(count)
-    v2_prev = np.empty(count)
-    for k in range(count):
-        i, j = pi[k], pj[k]
-        if j == WALL and t_start == st[i, _S_T0]:
-            touching = _zero_length_departure(p, st, i)
-        else:
-            touching = _f(_F_SIGN_SEP, p, st, tr, i, j, t_start) <= 0.0
-        if touching:
-            return t_start, i, j
-        s_prev[k], ds_prev[k], v2_prev[k] = _pair(p, st, pi[k], pj[k], t_start)
-    h = _scan_step_s(p)
-    accel = 2.0 * max(p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR])
+    # every rod's vial-frame position at t_start; a held rod's later position is this one turned by ω_r(t − t_start)
+    # a held rod's position later is its position at t_start turned by ω_r(t − t_start); a flying rod's needs
+    # cos, sin of ω_v(t − t0): both are phasors advanced by one step's turn, recomputed every _RESYNC steps
+    pos, phasor = rods[:, 0:4], rods[:, 4:6]
+    for r in range(n):
+        pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _rel(p, st, r, t_start)
+        if st[r, _S_FLY] == 0.0:
+            phasor[r, 0], phasor[r, 1] = pos[r, 0], pos[r, 1]
     r0 = p[_R0]
     c2 = 4.0 * p[_RR] * p[_RR]
+    s_prev, ds_prev, v2_prev, safe_until, stale = pairs[:, 0], pairs[:, 1], pairs[:, 2], pairs[:, 3], pairs[:, 4]
+    for k in range(count):
+        i, j = pi[k], pj[k]
+        x, y, vx, vy = pos[i, 0], pos[i, 1], pos[i, 2], pos[i, 3]
+        if j == WALL:
+            s, ds = r0 * r0 - (x * x + y * y), -2.0 * (x * vx + y * vy)
+            if t_start == st[i, _S_T0]:
+                touching = _zero_length_departure(p, st, i)
+            else:
+                touching = _departure_gap(p, st, i, t_start) <= 0.0
+        else:
+            x, y, vx, vy = x - pos[j, 0], y - pos[j, 1], vx - pos[j, 2], vy - pos[j, 3]
+            s, ds = x * x + y * y - c2, 2.0 * (x * vx + y * vy)
+            touching = s <= 0.0
+        if touching:
+            return t_start, i, j
+        s_prev[k], ds_prev[k], v2_prev[k] = s, ds, vx * vx + vy * vy
+    h = _scan_step_s(p)
+    accel = 2.0 * max(p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR])
+    # bounds on the relative acceleration of a pair in the vial frame (the wall is at rest there)
+    accel_fly, accel_held = p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR]
     near = _NEAR_ZERO * r0 * r0
-    pos = np.empty((n, 4))
-    safe_until = np.full(count, t_start)
-    filled_at = np.zeros(n, dtype=np.int64)
-    stale = np.zeros(count, dtype=np.bool_)
+    w_r, w_v = p[_WR], p[_WV]
+    cos_step_r, sin_step_r = math.cos(w_r * h), math.sin(w_r * h)
+    cos_step_v, sin_step_v = math.cos(w_v * h), math.sin(w_v * h)
+    cos_turn, sin_turn = 1.0, 0.0
+    for r in range(n):
+        if st[r, _S_FLY] != 0.0:
+            x = w_v * (t_start - st[r, _S_T0])
+            phasor[r, 0], phasor[r, 1] = math.cos(x), math.sin(x)
+    safe_until[:count] = t_start
+    stale[:count] = 0.0
+    filled_at = rod_ids
+    filled_at[:n] = 0
     t_prev = t_start
     step = 0
     while t_prev < t_end:
         step += 1
         t_k = min(t_start + h * step, t_end)
         t_next = min(t_start + h * (step + 1), t_end)
+        exact = step % _RESYNC == 0 or t_k == t_end
+        if exact:
+            cos_turn, sin_turn = math.cos(w_r * (t_k - t_start)), math.sin(w_r * (t_k - t_start))
+        else:
+            cos_turn, sin_turn = _turned(cos_turn, sin_turn, cos_step_r, sin_step_r)
+        for r in range(n):
+            if st[r, _S_FLY] == 0.0:
+                continue
+            if exact:
+                x = w_v * (t_k - st[r, _S_T0])
+                phasor[r, 0], phasor[r, 1] = math.cos(x), math.sin(x)
+            else:
+                phasor[r, 0], phasor[r, 1] = _turned(phasor[r, 0], phasor[r, 1], cos_step_v, sin_step_v)
         best, best_k = math.inf, -1
         for k in range(count):
             if t_next <= safe_until[k] and t_k < t_end:
-                stale[k] = True  # provably apart up to the next sample: not evaluated
+                stale[k] = 1.0  # provably apart up to the next sample: not evaluated
                 continue
             i, j = pi[k], pj[k]
             for r in (i, j):
-                if r != WALL and filled_at[r] != step:
-                    pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _rel(p, st, r, t_k)
-                    filled_at[r] = step
+                if r == WALL or filled_at[r] == step:
+                    continue
+                filled_at[r] = step
+                if st[r, _S_FLY] != 0.0:
+                    pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _flying_rel(
+                        p, st, r, t_k - st[r, _S_T0], phasor[r, 0], phasor[r, 1]
+                    )
+                    continue
+                xh = phasor[r, 0] * cos_turn - phasor[r, 1] * sin_turn
+                yh = phasor[r, 0] * sin_turn + phasor[r, 1] * cos_turn
+                pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = xh, yh, -w_r * yh, w_r * xh
             x, y, vx, vy = pos[i, 0], pos[i, 1], pos[i, 2], pos[i, 3]
             if j == WALL:
                 s, ds = r0 * r0 - (x * x + y * y), -2.0 * (x * vx + y * vy)
@@ -610,8 +693,8 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol):  # type: ignore[no-unt
                 s, ds = x * x + y * y - c2, 2.0 * (x * vx + y * vy)
                 gap = math.sqrt(x * x + y * y) - 2.0 * p[_RR]
             v2 = vx * vx + vy * vy
-            if stale[k]:
-                stale[k] = False  # the interval since the last sample lies where the pair is provably apart
+            if stale[k] != 0.0:
+                stale[k] = 0.0  # the interval since the last sample lies where the pair is provably apart
             else:
                 v = math.sqrt(max(v2, v2_prev[k]))
                 margin = 2.0 * ((v + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel) * h * h / 8.0
@@ -624,7 +707,13 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol):  # type: ignore[no-unt
             if gap > 0.0:
                 # |gap(t_k + Δ)| ≥ gap − vΔ − ½ AΔ² (A bounds the relative acceleration): apart while that is > 0
                 v = math.sqrt(v2)
-                safe_until[k] = t_k + 2.0 * gap / (v + math.sqrt(v2 + 2.0 * accel * gap))
+                if j == WALL:
+                    a_pair = accel_fly
+                elif st[j, _S_FLY] == 0.0:
+                    a_pair = accel_fly + accel_held
+                else:
+                    a_pair = 2.0 * accel_fly
+                safe_until[k] = t_k + 2.0 * gap / (v + math.sqrt(v2 + 2.0 * a_pair * gap))
         if best_k >= 0:
             return best, pi[best_k], pj[best_k]
         t_prev = t_k
@@ -660,14 +749,38 @@ def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _event(p, all_rods, horizon, flight_cap, tol, out):  # type: ignore[no-untyped-def]
-    """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring."""
+def _scratch(n_max):  # type: ignore[no-untyped-def]
+    """Work arrays of _event for up to n_max rods, made once per batch (no allocation per scene).
+
+    (pair columns, pair rod ids, rod columns, rod ids, trig rows, rod states, rod detachment columns)
+    """
+    pairs = n_max * (n_max + 1)
+    return (
+        np.empty((pairs, 5)),
+        np.empty((pairs, 2), dtype=np.int64),
+        np.empty((n_max, 6)),
+        np.empty(n_max, dtype=np.int64),
+        np.zeros((n_max, _TRIG_COLUMNS)),
+        np.empty((n_max, _STATE_COLUMNS)),
+        np.empty((n_max, 3)),
+    )
+
+
+@njit(cache=True)
+def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore[no-untyped-def]
+    """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring.
+
+    ``scratch``: :func:`_scratch` for at least this scene's number of rods.
+    """
     n = int(p[_N])
-    tr = _trig_rows(p, n)
-    st = np.zeros((n, _STATE_COLUMNS))
-    det_t = np.full(n, math.inf)
-    det_lb = np.full(n, horizon)
-    unsupported = np.zeros(n, dtype=np.bool_)
+    tr = _trig_rows(p, n, scratch[4])
+    st = scratch[5][:n]
+    st[:, :] = 0.0
+    det_columns = scratch[6]
+    det_t, det_lb, unsupported = det_columns[:n, 0], det_columns[:n, 1], det_columns[:n, 2]
+    det_t[:] = math.inf
+    det_lb[:] = horizon
+    unsupported[:] = 0.0
     window = _window_s(p)
     for i in range(n):
         st[i, _S_TH] = p[_TH0] + i * 2.0 * math.pi / n
@@ -675,7 +788,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out):  # type: ignore[no-untyp
             continue
         if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
             det_t[i] = 0.0
-            unsupported[i] = True
+            unsupported[i] = 1.0
         elif not _never_detaches(tr, i):
             det_lb[i] = 0.0
     det_end = horizon if all_rods else min(horizon, _revolution_s(p))
@@ -699,7 +812,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out):  # type: ignore[no-untyp
         seg_end = min(t_det, lb, contact_end)
         t_hit, rod, partner = math.inf, -1, -1
         if t_fly < math.inf:
-            t_hit, rod, partner = _earliest_contact(p, st, tr, n, t, seg_end, tol)
+            t_hit, rod, partner = _earliest_contact(p, st, tr, n, t, seg_end, tol, scratch)
         if t_hit < math.inf:
             if partner == WALL and t_hit == st[rod, _S_T0]:
                 # a zero-length flight is no impact: the rod stays held through this dip of N
@@ -726,8 +839,8 @@ def _event(p, all_rods, horizon, flight_cap, tol, out):  # type: ignore[no-untyp
         if rod_det < 0:
             out[_O_TD0] = first_departure if first_departure < math.inf else math.nan
             return
-        _depart(p, st, tr, rod_det, t_det, unsupported[rod_det])
-        unsupported[rod_det] = False
+        _depart(p, st, tr, rod_det, t_det, unsupported[rod_det] != 0.0)
+        unsupported[rod_det] = 0.0
         first_departure = min(first_departure, t_det)
         det_t[rod_det] = math.inf
         det_lb[rod_det] = det_end
@@ -828,6 +941,7 @@ TELEMETRY = (
 def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
     out = np.full((phases, len(TELEMETRY)), math.nan)
     ev = np.empty(len(OUT))
+    scratch = _scratch(int(p_base[_N]))
     rev = _revolution_s(p_base)
     lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
     for k in range(phases):
@@ -837,7 +951,7 @@ def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ig
         if pinned:
             out[k, 0], out[k, 1] = 0.0, 0.0
         else:
-            _event(p, False, math.inf, flight_cap, 0.0, ev)
+            _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
             detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
             out[k, 0], out[k, 1] = ev[_O_FOUND], 1.0 if detached else 0.0
             if ev[_O_FOUND] == 1.0:
@@ -903,8 +1017,9 @@ def detachment_times(row: FloatArray, horizon_s: float) -> FloatArray:
 @njit(cache=True)
 def _batch(rows, all_rods, horizon, flight_cap, tol):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], len(OUT)))
+    scratch = _scratch(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
     for k in range(rows.shape[0]):
-        _event(rows[k], all_rods, horizon, flight_cap, tol, out[k])
+        _event(rows[k], all_rods, horizon, flight_cap, tol, out[k], scratch)
     return out
 
 

@@ -181,6 +181,20 @@ def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike
     return np.zeros(w.shape, dtype=bool)
 
 
+def not_every_cycle_above_rad_s(law: LimitLaw, p: LimitParams) -> float | None:
+    """The cam speed ω_v (rad/s) above which ``law`` is not the every-cycle bound; None if it always is.
+
+    The one answer to "from where on does the configured law stop being the every-cycle bound", which
+    :func:`is_every_cycle_bound` evaluates pointwise: printed eq. 9 from k = m(hω_v)² on
+    (:func:`switch_omega_v_rad_s`), the best-phase law from standstill on (0), the every-cycle laws never.
+    """
+    if law in EVERY_CYCLE_LAWS:
+        return None
+    if law is LimitLaw.PAPER_EQ9:
+        return switch_omega_v_rad_s(p)
+    return 0.0
+
+
 def switch_omega_v_rad_s(p: LimitParams) -> float:
     """The cam speed ω_v (rad/s) where k = m(hω_v)² and the paper's worst phase flips sign."""
     return float(np.sqrt(p.spring_n_per_m / p.rod_mass_kg)) / strokes(p.cam)
@@ -253,6 +267,7 @@ __all__ = [
     "eq7_denominator",
     "eq9_vacuous_below_rad_s",
     "is_every_cycle_bound",
+    "not_every_cycle_above_rad_s",
     "omega_r_max",
     "omega_r_max_corrected_best_phase",
     "omega_r_max_corrected_every_phase",

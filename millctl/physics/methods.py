@@ -12,6 +12,7 @@ method          scheme                                                knob
 ``legacy``      paper: fixed dt, end-point check, averaging; circle   ``dt`` (s)
 ``legacy-interp`` as ``legacy``, time by linear interpolation          ``dt`` (s)
 ``legacy-arcs`` paper: fixed dt, wall as q arcs (eqs 15–17)           ``dt``, ``q``
+``legacy-compiled`` ``legacy`` compiled like ``exact`` (:mod:`.legacy_kernel`) ``dt`` (s)
 ``ivp``         scipy solve_ivp (DOP853) with terminal events          ``tol`` (rtol)
 =============== ==================================================== ============
 
@@ -31,11 +32,20 @@ from millctl.physics.events import ContactRow
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.ivp import ivp_first_contact
 from millctl.physics.legacy import legacy_first_contact
+from millctl.physics.legacy_kernel import legacy_first_contact_compiled
 from millctl.physics.model import Scene
 from millctl.physics.simulate import simulate
 
-Method = Literal["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp"]
-METHODS: tuple[Method, ...] = ("exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "ivp")
+Method = Literal["exact", "exact-reference", "legacy", "legacy-interp", "legacy-arcs", "legacy-compiled", "ivp"]
+METHODS: tuple[Method, ...] = (
+    "exact",
+    "exact-reference",
+    "legacy",
+    "legacy-interp",
+    "legacy-arcs",
+    "legacy-compiled",
+    "ivp",
+)
 
 
 @dataclass(frozen=True)
@@ -120,6 +130,11 @@ def first_impact(
             raise PhysicsInputError(f"method {method!r} needs a time step dt (s)")
         arcs = (360 if q is None else q) if method == "legacy-arcs" else None
         row = legacy_first_contact(scene, dt, arcs, t_end_s, interpolate=method == "legacy-interp")
+        return None if row is None else _event(scene, method, row)
+    if method == "legacy-compiled":
+        if dt is None:
+            raise PhysicsInputError(f"method {method!r} needs a time step dt (s)")
+        row = legacy_first_contact_compiled(scene, dt, t_end_s)
         return None if row is None else _event(scene, method, row)
     raise PhysicsInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
 

@@ -87,6 +87,8 @@ class Batch:
 
     estop: bool
     frames: list[can.Message] = field(default_factory=list)
+    error_frames: list[can.Message] = field(default_factory=list)
+    """CAN error frames of this drain, for :class:`millctl.protocol.bus_health.BusHealthMonitor`."""
 
 
 class BusReader:
@@ -124,6 +126,7 @@ class BusReader:
         """
         counts = self.counts
         frames: list[can.Message] = []
+        error_frames: list[can.Message] = []
         estop = self._estop_channel()
         errors_in_a_row = 0
         for _ in range(self.max_frames):
@@ -145,6 +148,7 @@ class BusReader:
                 estop = True
             elif frame.is_error_frame:
                 counts.error_frames += 1
+                error_frames.append(frame)
                 self._note("error frame", counts.error_frames, repr(frame))
             else:
                 frames.append(frame)
@@ -152,7 +156,7 @@ class BusReader:
             counts.capped_drains += 1
             self._note("drain stopped at its bound", counts.capped_drains, f"{self.max_frames} reads in one tick")
         estop = self._estop_channel() or estop
-        return Batch(estop, frames)
+        return Batch(estop, frames, error_frames)
 
     def _estop_channel(self) -> bool:
         """Read the E-stop channel empty (bounded); True when it held an E-stop. Never raises for bus input."""

@@ -29,6 +29,14 @@ _LAW_EQUATION = {
     LimitLaw.CORRECTED_BEST_PHASE: "corrected law, best phase",
 }
 
+LAW_IN_WORDS = {
+    LimitLaw.PAPER_EQ9: "paper eq. 9 as printed",
+    LimitLaw.PAPER_EVERY_CYCLE: "paper, worst cam phase (rods detach every cycle)",
+    LimitLaw.CORRECTED_EVERY_PHASE: "corrected law, worst cam phase",
+    LimitLaw.CORRECTED_BEST_PHASE: "corrected law, best cam phase only (not every cycle)",
+}
+"""Each law in an operator's words, for legends (``millctl limits --plot``, the TUI's envelope view)."""
+
 
 @dataclass(frozen=True)
 class Refusal:
@@ -265,4 +273,4 @@ class Envelope:
         )
 
 
-__all__ = ["DOC_REF", "Envelope", "InterlockRefused", "Refusal", "Verdict"]
+__all__ = ["DOC_REF", "LAW_IN_WORDS", "Envelope", "InterlockRefused", "Refusal", "Verdict"]

@@ -14,7 +14,6 @@ import time
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
-import numpy as np
 from fastapi import Body, FastAPI, Header, Query
 from sse_starlette import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
@@ -27,7 +26,6 @@ from millctl.api import (
     ControllerState,
     ControlOut,
     EnvelopeOut,
-    EnvelopePoint,
     EventKind,
     EventsOut,
     FurnaceRequest,
@@ -44,6 +42,7 @@ from millctl.api import (
 )
 from millctl.controller import Controller
 from millctl.safety import InterlockRefused
+from millctl.service.envelope_view import envelope_out
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
 from millctl.service.journal import finite
 from millctl.service.limits import BodyLimit
@@ -128,19 +127,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.get("/v1/envelope", response_model=EnvelopeOut, responses=READ_RESPONSES, tags=["envelope"])
     def envelope(points: Annotated[int, Query(ge=2, le=1001)] = 41) -> EnvelopeOut:
         """The limit curve the interlock enforces: ω_v grid → ω_r limit, with the law, margin and flags."""
-        env = rt.controller.envelope
-        w_v = np.linspace(0.0, env.vibration_max_rpm, points)
-        limit, law_limit, every = env.omega_r_limit_rpm(w_v), env.law_limit_rpm(w_v), env.every_cycle(w_v)
-        return EnvelopeOut(
-            law=env.law.value, description=env.description, margin=env.margin, rotary_max_rpm=env.rotary_max_rpm,
-            vibration_max_rpm=env.vibration_max_rpm, furnace_min_c=env.furnace_min_c, furnace_max_c=env.furnace_max_c,
-            max_heating_rate_c_per_min=env.max_heating_rate_c_per_min,
-            points=[
-                EnvelopePoint(vibration_rpm=float(w_v[i]), limit_rotary_rpm=finite(float(limit[i])),
-                              law_limit_rotary_rpm=finite(float(law_limit[i])), law_is_every_cycle=bool(every[i]))
-                for i in range(points)
-            ],
-        )
+        return envelope_out(rt.controller.envelope, points)
 
     @app.post("/v1/envelope/check", response_model=CheckOut, responses=READ_RESPONSES, tags=["envelope"])
     def check(body: CheckRequest) -> CheckOut:

@@ -50,6 +50,7 @@ class MillApp(Commanding, Following):
         Binding("n", "recipe_run", "Recipe"),
         Binding("p", "recipe_pause", "Pause"),
         Binding("b", "recipe_abort", "Abort run"),
+        Binding("e", "envelope", "Envelope"),
         Binding("c", "control", "Control"),
         Binding("q", "quit", "Quit"),
     ]
@@ -81,6 +82,8 @@ class MillApp(Commanding, Following):
         yield SystemCommand("Pause/resume recipe", "Pause at the next step boundary, or resume",
                             self.action_recipe_pause)
         yield SystemCommand("Abort recipe", "Abort the run with a controlled stop", self.action_recipe_abort)
+        yield SystemCommand("Envelope view", "Which rotary speed is safe: every law, the operating point (e)",
+                            self.action_envelope)
         yield SystemCommand("Take control", "Take the control lease", self.action_take)
         yield SystemCommand("Take over expired control", "Force over another client's expired lease",
                             self.action_take_force)

@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from millctl.api import CommandOut
 from millctl.client import AsyncClient
+from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.format import MOVING_STATES
 from millctl.tui.link import LINK_ERRORS, describe
 from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal, SetRequest
@@ -112,6 +113,10 @@ class Commanding(MillView):
             vibration_rate_rpm_s=request.vibration_rate_rpm_s, linear=request.linear))
         if ok and request.furnace and temp is None:
             await self._send("heater off", lambda c: c.set_furnace(None))
+
+    def action_envelope(self) -> None:
+        """Show the envelope view: every law, the regime warning, the operating point."""
+        self.push_screen(EnvelopeScreen(self.envelope, self.status))
 
     # ------------------------------------------------------------------ recipes
     def action_recipe_run(self) -> None:

@@ -13,7 +13,8 @@ from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import Sparkline, Static
 
-from millctl.api import ControlOut, EnvelopeOut, RecipeOut, StatusOut
+from millctl.api import BusCondition, ControlOut, EnvelopeOut, RecipeOut, StatusOut
+from millctl.client import describe_bus_health
 from millctl.tui.format import duration, e2e_errors, num, state_style
 from millctl.tui.plot import Curve, render_plot
 
@@ -82,8 +83,12 @@ class FurnacePanel(TrendPanel):
         self.set_content(text, temp)
 
 
+NARROW_SUMMARY_BELOW = 60
+"""Envelope panels narrower than this (columns) say the summary in fewer words."""
+
+
 class EnvelopePanel(Static):
-    """The limit curve with the operating point, the limit and margin here, the law, and its every-cycle warning."""
+    """The limit curve with the operating point, the limit and margin here, the law, and its regime warning (once)."""
 
     def __init__(self, *, id: str) -> None:
         super().__init__(id=id, classes="panel")
@@ -119,27 +124,40 @@ class EnvelopePanel(Static):
         if s is not None and s.target_vibration_rpm is not None and s.target_rotary_rpm is not None:
             target = (s.target_vibration_rpm, s.target_rotary_rpm)
         width = max(self.content_size.width, 20)
-        height = max(self.content_size.height - 3, 4)
-        text = render_plot(curve, width, height, point, target)
+        summary = self.summary(width)
+        lines = len(summary.wrap(self.app.console, width))  # the summary wraps on a narrow screen: the plot gives way
+        text = render_plot(curve, width, max(self.content_size.height - lines, 4), point, target)
         text.append("\n")
+        text.append_text(summary)
+        self.update(text, layout=False)
+
+    def summary(self, width: int) -> Text:
+        """The lines under the plot: the limit and margin here, the law, and the regime warning (said once).
+
+        Under 60 columns (an 80 × 24 terminal) the same in fewer words, so the plot keeps its rows.
+        """
+        s, env = self.status, self.envelope
+        narrow = width < NARROW_SUMMARY_BELOW
         w_v = s.setpoint_vibration_rpm if s else None
-        text.append_text(Text.assemble(
-            ("limit ", "dim"), (f"ω_r ≤ {num(s.limit_rotary_rpm if s else None)} rpm", "bold"),
-            (f" at ω_v = {num(w_v)} rpm", "dim"),
-            ("   margin ", "dim"), num(s.margin_rpm if s else None, ".1f", " rpm"),
-        ))
-        env = self.envelope
+        limit = s.limit_rotary_rpm if s else None
+        text = Text.assemble(
+            ("limit " if not narrow else "", "dim"), (f"ω_r ≤ {num(limit)} rpm", "bold"),
+            (f" at ω_v = {num(w_v)} rpm" if not narrow else f" at ω_v {num(w_v)}", "dim"),
+            ("   margin " if not narrow else " · margin ", "dim"), num(s.margin_rpm if s else None, ".1f", " rpm"),
+        )
         law = s.law if s else (env.law if env else "?")
         margin = s.margin if s else (env.margin if env else None)
-        if s is not None and not s.law_is_every_cycle:
-            text.append(f"\n⚠ at this ω_v {law} is not the every-cycle bound (docs/model.md)", style="bold yellow")
-        start = curve.first_not_every_cycle_rpm()
-        text.append(f"\nlaw {law} · margin {num(margin, '.0%')} · ", style="dim")
-        text.append("green: every-cycle", style="green")
-        if start is not None:
-            text.append(" · ", style="dim")
-            text.append(f"yellow: not (ω_v ≥ {start:.0f} rpm)", style="yellow")
-        self.update(text, layout=False)
+        shown_margin = num(margin, ".0%")
+        text.append(f"\nlaw {law} · margin {shown_margin} · " if not narrow else f"\n{law} −{shown_margin} · ",
+                    style="dim")
+        text.append("green: every-cycle bound" if not narrow else "green: every-cycle", style="green")
+        text.append(" · e: all laws" if not narrow else " · e", style="dim")
+        if env is not None and env.regime is not None:
+            here = s is not None and not s.law_is_every_cycle  # the setpoint is in the region: say it louder
+            short = f"ω_v > {env.regime.above_vibration_rpm:.1f} rpm: not every-cycle"
+            words = env.regime.summary if not narrow else short
+            text.append(f"\n⚠ {words} (yellow)", style="bold yellow" if here else "yellow")
+        return text
 
 
 class PhysicsPanel(Static):
@@ -158,27 +176,35 @@ class PhysicsPanel(Static):
         ))
 
 
+def link_text(status: StatusOut) -> Text:
+    """The link panel's text: per frame kind age, E2E errors and score; invalid frames; the CAN bus when unwell."""
+    text = Text()
+    for name, link in sorted(status.link.items()):
+        age, bound = link.age_s, link.stale_after_s or 1.0
+        dead = age is None or age > DEAD_FACTOR * bound
+        style = "bold red" if dead else ("dim" if link.stale else "")
+        errors = e2e_errors(link.e2e)
+        flag = " DEAD" if dead else (" STALE" if link.stale else "")
+        score = link.e2e_score
+        short = name.removesuffix("Telemetry")
+        line = f"{short[:10]:<10} {num(age, '.2f', ' s'):>8}  e2e err {errors} score {score}{flag}\n"
+        text.append(line, style=style)
+    invalid = status.invalid_frames
+    text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
+    if receive_errors := status.receive_errors:
+        text.append(f"  receive errors {receive_errors}", style="red")
+    health = status.bus_health
+    if health.condition is not BusCondition.ERROR_ACTIVE or health.error_frames:
+        text.append(f"\nCAN {describe_bus_health(health)}", style="bold red")
+    return text
+
+
 class LinkPanel(Static):
     """Node link health per frame kind: age, E2E errors and score; dim when stale, red when dead."""
 
     def show(self, status: StatusOut) -> None:
         """Update from a status."""
-        text = Text()
-        for name, link in sorted(status.link.items()):
-            age, bound = link.age_s, link.stale_after_s or 1.0
-            dead = age is None or age > DEAD_FACTOR * bound
-            style = "bold red" if dead else ("dim" if link.stale else "")
-            errors = e2e_errors(link.e2e)
-            flag = " DEAD" if dead else (" STALE" if link.stale else "")
-            score = link.e2e_score
-            short = name.removesuffix("Telemetry")
-            line = f"{short[:10]:<10} {num(age, '.2f', ' s'):>8}  e2e err {errors} score {score}{flag}\n"
-            text.append(line, style=style)
-        invalid = status.invalid_frames
-        text.append(f"invalid frames {invalid}", style="red" if invalid else "dim")
-        if receive_errors := status.receive_errors:
-            text.append(f"  receive errors {receive_errors}", style="red")
-        self.update(text, layout=False)
+        self.update(link_text(status), layout=False)
 
 
 class StatePanel(Static):

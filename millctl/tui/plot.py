@@ -3,13 +3,15 @@
 The curve comes from the service (``GET /v1/envelope``), so the plot shows
 exactly what the interlock enforces. Each character cell holds 2 × 4 braille
 dots. The curve is green where the configured law is the every-cycle bound
-and yellow where it is not (docs/model.md); the measured operating point is
-``●`` (red when above the limit) and the commanded target ``○``.
+and yellow where it is not (from the service's regime warning,
+:mod:`millctl.safety.regime`, the number ``millctl limits`` prints); the
+measured operating point is ``●`` (red when above the limit) and the
+commanded target ``○``. The envelope view (:mod:`millctl.tui.envelope`) adds
+the other laws as curves of their own colour under the enforced one.
 """
 
 from __future__ import annotations
 
-import bisect
 import functools
 import math
 from dataclasses import dataclass
@@ -25,22 +27,27 @@ _DOT_BITS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))
 
 @dataclass(frozen=True)
 class Curve:
-    """The limit curve: ω_v grid (rpm), ω_r limit (rpm, None where unbounded), every-cycle flags, axis maxima."""
+    """A limit curve: ω_v grid (rpm), ω_r limit (rpm, None where unbounded), where the law is the every-cycle bound."""
 
     omega_v_rpm: tuple[float, ...]
     limit_rpm: tuple[float | None, ...]
-    every_cycle: tuple[bool, ...]
+    not_every_cycle_above_rpm: float | None
+    """From this ω_v up (rpm) the law is not the every-cycle bound; None: it is over the whole range."""
     rotary_max_rpm: float
     vibration_max_rpm: float
 
     @classmethod
-    def from_envelope(cls, envelope: EnvelopeOut) -> Curve:
-        """Build from the service's ``/v1/envelope`` answer."""
+    def from_envelope(cls, envelope: EnvelopeOut, law: str | None = None) -> Curve:
+        """The enforced curve of the service's ``/v1/envelope`` answer, or (``law``) that law's, without margin."""
         points = envelope.points
+        if law is None:
+            limits = tuple(p.limit_rotary_rpm for p in points)
+        else:
+            limits = tuple(p.laws_rotary_rpm.get(law) for p in points)
         return cls(
             omega_v_rpm=tuple(p.vibration_rpm for p in points),
-            limit_rpm=tuple(p.limit_rotary_rpm for p in points),
-            every_cycle=tuple(p.law_is_every_cycle for p in points),
+            limit_rpm=limits,
+            not_every_cycle_above_rpm=envelope.regime.above_vibration_rpm if envelope.regime else None,
             rotary_max_rpm=envelope.rotary_max_rpm,
             vibration_max_rpm=envelope.vibration_max_rpm,
         )
@@ -64,31 +71,51 @@ class Curve:
         return min(math.ceil(top / 10.0) * 10.0, self.rotary_max_rpm)
 
     def every_cycle_at(self, omega_v_rpm: float) -> bool:
-        """Whether the law is the every-cycle bound at the grid point at or below ``omega_v_rpm``."""
-        index = bisect.bisect_right(self.omega_v_rpm, omega_v_rpm) - 1
-        return self.every_cycle[min(max(index, 0), len(self.every_cycle) - 1)]
-
-    def first_not_every_cycle_rpm(self) -> float | None:
-        """The lowest ω_v (rpm) of the grid where the law is not the every-cycle bound, or None."""
-        for w_v, every in zip(self.omega_v_rpm, self.every_cycle, strict=True):
-            if not every:
-                return w_v
-        return None
+        """Whether the law is the every-cycle bound at ``omega_v_rpm`` (the service's regime warning)."""
+        above = self.not_every_cycle_above_rpm
+        return above is None or (above > 0.0 and omega_v_rpm <= above)
 
 
-@functools.lru_cache(maxsize=16)
-def _curve_rows(curve: Curve, cols: int, rows: int, y_max: float) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The curve as braille rows, and each column's style (green: every-cycle bound; yellow: not)."""
+Cells = tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]
+"""Braille rows, and the style of every cell of every row."""
+
+
+def _dots(curve: Curve, cols: int, rows: int, y_max: float) -> list[list[int]]:
+    """The braille dot bits of one curve, row by row."""
     dots_x, dots_y = 2 * cols, 4 * rows
     cells = [[0] * cols for _ in range(rows)]
     for dx in range(dots_x):
         frac = curve.limit_at(curve.vibration_max_rpm * dx / (dots_x - 1)) / y_max
+        if frac > 1.0:
+            continue  # above the top of the plot: not drawn at the edge, where it would look like a limit
         dy = dots_y - 1 - min(max(round(frac * (dots_y - 1)), 0), dots_y - 1)
         cells[dy // 4][dx // 2] |= _DOT_BITS[dy % 4][dx % 2]
-    lines = tuple("".join(chr(BRAILLE_BASE + bits) for bits in row) for row in cells)
-    styles = tuple("green" if curve.every_cycle_at(curve.vibration_max_rpm * col / max(cols - 1, 1)) else "yellow"
-                   for col in range(cols))
-    return lines, styles
+    return cells
+
+
+@functools.lru_cache(maxsize=16)
+def _curve_cells(curve: Curve, others: tuple[tuple[Curve, str], ...], cols: int, rows: int, y_max: float) -> Cells:
+    """The curves as braille rows with each cell's style: the others first, the enforced one over them.
+
+    The enforced curve is green where its law is the every-cycle bound and yellow where it is not.
+    """
+    bits = [[0] * cols for _ in range(rows)]
+    styles = [[""] * cols for _ in range(rows)]
+    for other, style in others:
+        for r, row in enumerate(_dots(other, cols, rows, y_max)):
+            for c, cell in enumerate(row):
+                if cell:
+                    bits[r][c] |= cell
+                    styles[r][c] = style
+    column_style = ["green" if curve.every_cycle_at(curve.vibration_max_rpm * col / max(cols - 1, 1)) else "yellow"
+                    for col in range(cols)]
+    for r, row in enumerate(_dots(curve, cols, rows, y_max)):
+        for c, cell in enumerate(row):
+            if cell:
+                bits[r][c] = cell  # the enforced curve alone in its cells: it must read clearly
+                styles[r][c] = column_style[c]
+    lines = tuple("".join(chr(BRAILLE_BASE + b) for b in row) for row in bits)
+    return lines, tuple(tuple(row) for row in styles)
 
 
 def render_plot(
@@ -97,12 +124,16 @@ def render_plot(
     height: int,
     point: tuple[float, float] | None = None,
     target: tuple[float, float] | None = None,
+    others: tuple[tuple[Curve, str], ...] = (),
 ) -> Text:
-    """The plot as ``height`` lines of ``width`` cells (axis labels included); points are (ω_v, ω_r) in rpm."""
+    """The plot as ``height`` lines of ``width`` cells (axis labels included); points are (ω_v, ω_r) in rpm.
+
+    ``others`` are further curves with their style, drawn under the enforced one.
+    """
     y_max = curve.y_max_rpm(target[1] if target else 0.0, point[1] if point else 0.0)
     label_w = len(f"{y_max:.0f}") + 1
     cols, rows = max(width - label_w, 4), max(height - 1, 2)
-    lines, styles = _curve_rows(curve, cols, rows, y_max)
+    lines, styles = _curve_cells(curve, others, cols, rows, y_max)
 
     def cell_of(pair: tuple[float, float]) -> tuple[int, int] | None:
         w_v, w_r = pair
@@ -124,18 +155,17 @@ def render_plot(
         text.append(label.rjust(label_w - 1) + "┤" if label else " " * (label_w - 1) + "│", style="dim")
         start = len(text)
         line = list(lines[row])
-        for (mark_row, col), (char, _) in marks.items():
+        row_styles = list(styles[row])
+        for (mark_row, col), (char, style) in marks.items():
             if mark_row == row:
-                line[col] = char
+                line[col], row_styles[col] = char, style
         text.append("".join(line) + "\n")
         run_start = 0
         for col in range(1, cols + 1):  # one span per run of equal style, not one per cell
-            if col == cols or styles[col] != styles[run_start]:
-                text.stylize(styles[run_start], start + run_start, start + col)
+            if col == cols or row_styles[col] != row_styles[run_start]:
+                if row_styles[run_start]:
+                    text.stylize(row_styles[run_start], start + run_start, start + col)
                 run_start = col
-        for (mark_row, col), (_, style) in marks.items():
-            if mark_row == row:
-                text.stylize(style, start + col, start + col + 1)
     axis = f"0 ω_v rpm → {curve.vibration_max_rpm:.0f}"
     text.append(" " * label_w + axis.ljust(cols)[:cols], style="dim")
     return text

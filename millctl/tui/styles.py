@@ -33,6 +33,9 @@ SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
 .buttons { height: 3; margin-top: 1; align: right middle; }
 .buttons Button { margin-left: 2; }
 .hint { color: $text-muted; margin-top: 1; }
+#envelope-view { height: 1fr; }
+#envelope-plot { height: 1fr; min-height: 6; }
+#envelope-legend { height: auto; }
 
 /* an 80 × 24 terminal: no trends, the panels share the height, physics gives its place to the links */
 Screen.-short .trend { display: none; }

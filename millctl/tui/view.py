@@ -24,6 +24,7 @@ from textual.widgets import Footer, RichLog, Static
 from textual.worker import Worker, WorkerState
 
 from millctl.api import ControllerState, ControlOut, EnvelopeOut, EventKind, EventOut, RecipeOut, StatusOut
+from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.format import state_style
 from millctl.tui.legible import LegibleMonochrome
 from millctl.tui.link import ServiceLink, quiet_raced_reads
@@ -62,6 +63,7 @@ class MillView(App[None]):
         self.status: StatusOut | None = None
         self.control: ControlOut | None = None
         self.recipe: RecipeOut | None = None
+        self.envelope: EnvelopeOut | None = None
         self.online = False
         self.last_seq = 0
         self._applies: tuple[ControllerState | None, bool, bool] | None = None
@@ -138,10 +140,19 @@ class MillView(App[None]):
         self.main_screen.query_one("#links", LinkPanel).show(status)
         self.show_trip(status)
         self.redraw_state()
+        self.redraw_envelope_view()
 
     def apply_envelope(self, envelope: EnvelopeOut) -> None:
         """Take the service's limit curve (``GET /v1/envelope``)."""
+        self.envelope = envelope
         self.main_screen.query_one("#envelope", EnvelopePanel).set_envelope(envelope)
+        self.redraw_envelope_view()
+
+    def redraw_envelope_view(self) -> None:
+        """Keep the envelope view (when open) on the latest envelope and status."""
+        for screen in self.screen_stack:
+            if isinstance(screen, EnvelopeScreen):
+                screen.show(self.envelope, self.status)
 
     def apply_control(self, control: ControlOut) -> None:
         """Show who holds control (``GET /v1/control``)."""

@@ -18,14 +18,14 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import can
 import msgpack
 from can.interfaces.udp_multicast.utils import pack_message
 
 from millctl.config.models import Bus
-from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, open_bus
+from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
 
 CAN_BITRATE = 500_000
 """The mill bus's bit rate (config/millbus.dbc)."""
@@ -51,6 +51,8 @@ class Background:
     sent: int = 0
     first_sent_t: float | None = None
     """Wall-clock time just before its first frame went out (None before)."""
+    last_sent_t: float | None = None
+    """Wall-clock time just after its last frame went out (None before; set by the senders that need it)."""
     refused: int = 0
     """Sends the interface refused (its transmit queue full)."""
     _halt: threading.Event = field(default_factory=threading.Event)
@@ -182,6 +184,31 @@ class Adversary:
                 time.sleep(max(next_s - time.monotonic(), 0.0))
 
         return self._background("replay", body)
+
+    def walk(
+        self, start: Setpoints, step_rpm: tuple[float, float], first_counter: int, frames_per_burst: int = 5
+    ) -> Background:
+        """A fast forger: Setpoints frames with fresh counters from ``first_counter``, each ``step_rpm`` past the
+        last, ``frames_per_burst`` at a time every ``BURST_S`` (1000 frames/s by default), until stopped."""
+
+        def body(sender: Background) -> None:
+            while not sender.halted:
+                frames = []
+                for _ in range(frames_per_burst):
+                    k = sender.sent + len(frames) + 1
+                    ask = replace(
+                        start,
+                        rotary_rpm=round(start.rotary_rpm + k * step_rpm[0], 1),
+                        vibration_rpm=round(start.vibration_rpm + k * step_rpm[1], 1),
+                    )
+                    frames.append(self.forged(ask, (first_counter + k - 1) % 16))
+                t = self.send(*frames)
+                sender.first_sent_t = sender.first_sent_t or t
+                sender.last_sent_t = time.time()
+                sender.sent += len(frames)
+                time.sleep(BURST_S)
+
+        return self._background("walk", body)
 
     def answer(self, kinds: tuple[type[MillMessage], ...], forge: Callable[[Decoded], MillMessage]) -> Background:
         """A second sender: every genuine frame of ``kinds`` heard is answered at once with ``forge``, counter + 1."""

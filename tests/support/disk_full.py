@@ -17,11 +17,17 @@ import re
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
+from millctl.api.models import RecipeProgress
+from millctl.client import Client
 from millctl.records import read_records
+from tests.support.pace import Deadline
 from tests.support.service import start_service, write_config
+
+T = TypeVar("T")
 
 TMPFS_SIZE = "1m"
 RECIPE = """\
@@ -38,15 +44,22 @@ duration_s = 600
 CANDUMP = re.compile(r"^\([0-9.]+\) \S+ [0-9A-F]{3,8}#[0-9A-F]*( [RT])?$")
 
 
-def _until(condition: Any, timeout_s: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+def _until(condition: Callable[[], T | None], timeout_s: float, what: str) -> T:
+    """The first truthy answer of ``condition`` (errors count as not yet), within a wait that stretches with load."""
+    deadline = Deadline(timeout_s)
+    while not deadline.expired():
         with contextlib.suppress(Exception):
             found = condition()
             if found:
                 return found
         time.sleep(0.1)
-    raise SystemExit(f"timed out waiting for {what}")
+    raise SystemExit(f"timed out after {deadline.describe()} waiting for {what}")
+
+
+def _stopped(client: Client) -> RecipeProgress | None:
+    """The recipe's progress once it has stopped (ABORTED or FAILED), else None."""
+    progress = client.recipe().progress
+    return progress if progress is not None and progress.state in ("ABORTED", "FAILED") else None
 
 
 def _fill(directory: Path) -> Path:
@@ -82,13 +95,12 @@ def main(directory: Path) -> int:
     try:
         with service.client("disk-full") as client, client.control():
             client.recipe_run_text("long-hold.toml", RECIPE)
-            _until(lambda: client.recipe().progress.step == 2, 60.0, "the hold step")
+            _until(lambda: (p := client.recipe().progress) is not None and p.step == 2, 60.0, "the hold step")
             seen["seq_before"] = client.events().last_seq
             filler = _fill(records)
             warnings = _until(lambda: client.service().warnings, 30.0, "the records warning")
             seen["warnings"] = warnings
-            progress = _until(lambda: (p := client.recipe().progress) and p.state in ("ABORTED", "FAILED") and p,
-                              60.0, "the recipe to stop")
+            progress = _until(lambda: _stopped(client), 60.0, "the recipe to stop")
             seen["recipe_state"], seen["recipe_reason"] = str(progress.state), progress.reason
             status = client.status()
             seen["state"], seen["trip_cause"] = str(status.state), status.trip_cause

@@ -16,7 +16,7 @@ import sys
 import tempfile
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -58,9 +58,9 @@ class Service:
     records: Path
     log: Path
 
-    def client(self, name: str = "test", **kwargs: object) -> Client:
+    def client(self, name: str = "test") -> Client:
         """A client of this service."""
-        return Client(self.socket, name=name, **kwargs)  # type: ignore[arg-type]
+        return Client(self.socket, name=name)
 
     def output(self) -> str:
         """What the service wrote to stdout and stderr."""
@@ -155,11 +155,11 @@ def service() -> Iterator[Service]:
             running.stop()
 
 
-def wait_for(condition: object, timeout_s: float = 10.0, what: str = "condition") -> None:
+def wait_for(condition: Callable[[], object], timeout_s: float = 10.0, what: str = "condition") -> None:
     """Poll ``condition()`` until true; fail after ``timeout_s`` (a safety net that stretches with load)."""
     deadline = Deadline(timeout_s)
     while not deadline.expired():
-        if condition():  # type: ignore[operator]
+        if condition():
             return
         time.sleep(0.05)
     pytest.fail(f"timed out after {deadline.describe()} waiting for {what}")

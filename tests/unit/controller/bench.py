@@ -45,24 +45,32 @@ class ScriptedNode:
         counter = self.counters.setdefault(type(message), AliveCounter()).next() if message.E2E else 0
         self.bus.send(self.codec.encode(message, counter))
 
-    def alive(self, state: NodeState = NodeState.DISABLED, rotary_rpm: float = 0.0, vibration_rpm: float = 0.0) -> None:
+    def alive(
+        self,
+        state: NodeState = NodeState.DISABLED,
+        rotary_rpm: float = 0.0,
+        vibration_rpm: float = 0.0,
+        setpoint_c: float = 25.0,
+        heater_on: bool = False,
+    ) -> None:
         """One round of the node's safety-relevant frames."""
         self.say(NodeStatus(state))
         self.say(DriveTelemetry(rotary_rpm, vibration_rpm))
-        self.say(FurnaceTelemetry(25.0, 25.0, 0.0, False))
+        self.say(FurnaceTelemetry(25.0, setpoint_c, 0.0, heater_on))
 
     def collect(self) -> None:
         for frame in iter(lambda: self.bus.recv(timeout=0.0), None):
             self.sent.append((self.clock.now(), self.codec.decode(frame)))
 
     def followed(self) -> dict[str, object]:
-        """A node that did what it was told: the last setpoint as its speeds, RUNNING while it is not zero."""
+        """A node that did what it was told: the last setpoint as its speeds and heater, RUNNING while it is not
+        zero."""
         sent = [d.message for _, d in self.of(Setpoints)]
         last = sent[-1] if sent else Setpoints(0.0, 0.0, 25.0, False)
         assert isinstance(last, Setpoints)
         moving = last.rotary_rpm > 0.0 or last.vibration_rpm > 0.0
         return {"state": NodeState.RUNNING if moving else NodeState.ARMED, "rotary_rpm": last.rotary_rpm,
-                "vibration_rpm": last.vibration_rpm}
+                "vibration_rpm": last.vibration_rpm, "setpoint_c": last.furnace_c, "heater_on": last.heater_on}
 
     def run(self, seconds: float, dt: float = 0.01, *, follow: bool = False, **alive: object) -> None:
         """Tick the controller for ``seconds``; with ``alive`` kwargs, the node talks every 50 ms.

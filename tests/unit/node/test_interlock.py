@@ -53,6 +53,33 @@ def test_safety_12_a_raw_jump_is_refused_accel_limit(bench: Bench) -> None:
     assert bench.node.state is NodeState.ARMED
 
 
+def test_safety_12_a_fast_forger_cannot_walk_the_setpoint_faster_than_the_drives_rate(bench: Bench) -> None:
+    """A 100 Hz sender asking for 5 rpm of ω_v a frame (the old per-frame step limit allowed 18.2 rpm each, 1820
+    rpm/s): over any window the node accepts at most 1.5 × max accel × the window + its burst."""
+    bench.arm()
+    accel = bench.config.drives.vibration.max_accel_rpm_s
+    burst = 1.5 * accel * bench.config.timing.watchdog_timeout_s + 0.2
+    frame_s, asked = 0.01, 0.0
+    accepted: list[tuple[float, float]] = []  # (time, accepted ω_v)
+    refusals: set[RefusalCode] = set()
+    for _ in range(100):  # one second
+        asked += 5.0
+        before = bench.node.refused_setpoints
+        bench.send(Setpoints(0.0, asked, 25.0, False))
+        bench.step(frame_s, dt_s=frame_s)
+        now_rpm = bench.node.last_setpoint.vibration_rpm if bench.node.last_setpoint else 0.0
+        if bench.node.refused_setpoints != before:
+            refusals.add(bench.node.last_refusal)
+            asked = now_rpm
+        accepted.append((bench.clock.now(), now_rpm))
+    assert refusals == {RefusalCode.ACCEL_LIMIT}
+    for i, (t1, v1) in enumerate(accepted):
+        for t2, v2 in accepted[i + 1 :]:
+            assert v2 - v1 <= burst + 1.5 * accel * (t2 - t1) + 1e-6, f"{v2 - v1:.1f} rpm in {t2 - t1:.2f} s"
+    # the slowest honest sender (one frame per setpoint period) gets as far as the fast one
+    assert accepted[-1][1] >= 1.5 * accel * 0.9
+
+
 def test_safety_12_the_controllers_sampled_ramp_passes(bench: Bench) -> None:
     bench.run_at(180.0, 800.0)
     assert bench.node.refused_setpoints == 0

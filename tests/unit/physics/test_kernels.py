@@ -103,3 +103,24 @@ def test_pinned_scene_has_no_impact(set_a_corrected: MillModel) -> None:
     fast = Scene(dataclasses.replace(set_a_corrected, eccentricity_m=0.0), 40.0, 0.0)  # r0 ω² > g: never leaves
     row = first_impacts(SceneBatch.from_scenes([fast]), rods="all")[0]
     assert not row["found"] and math.isnan(row["first_detach_time_s"])
+
+
+def test_flight_after_a_long_run_keeps_its_digits(set_a_corrected: MillModel) -> None:
+    """A flight is evaluated in its own time τ and the departure's cam phase (issue 17, phase not absolute time).
+
+    The old kernel rebuilt the cam phase as α0 + ω_v t0 and took sin(α0 + ω_v t0 + ω_v τ) − sin α_d: after a
+    departure at t0 = 2¹⁷ s (ω_v t0 ≈ 1.6e7 rad, one ulp ≈ 4e-9 rad) its lift lost ~1e-12 m. The same flight
+    from t0 = 0 and from t0 = 2¹⁷ s must now land on the same point to the last digits.
+    """
+    row = kernels.scene_row(Scene(set_a_corrected, 12.0, 120.0))
+    w_v, alpha_d, tau = 120.0, 0.3, 2.0**-10  # t0 + τ exact in binary: τ is recovered without rounding
+    positions = []
+    for t0 in (0.0, 2.0**17):
+        p = row.copy()
+        p[kernels.PARAMS.index("omega_v_rad_s")] = w_v
+        p[kernels.PARAMS.index("alpha0_rad")] = alpha_d - w_v * t0  # the cam is at α_d when the rod departs
+        state = np.zeros((1, 10))
+        # flying, departed at t0 from the top of the wall with a sideways speed; sin, cos of α_d
+        state[0, :] = [1.0, t0, 0.0, 0.0, 0.018, -0.2, 0.0, 0.0, math.sin(alpha_d), math.cos(alpha_d)]
+        positions.append(np.array(kernels._rel(p, state, 0, t0 + tau)))
+    assert np.max(np.abs(positions[1] - positions[0])) <= 1e-16

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from millctl.errors import PhysicsInputError
+from millctl.physics.agreement import random_scenes
 from millctl.physics.legacy import arc_wall_sink_m
 from millctl.physics.methods import METHODS, first_impact
 from millctl.physics.model import Scene
@@ -109,3 +110,25 @@ def test_rod_rod_energy_uses_the_held_partner_whichever_rod_of_the_pair_flies(
     assert exact is not None and legacy is not None
     assert {exact.rod, exact.partner} == {legacy.rod, legacy.partner} and legacy.partner >= 0
     assert legacy.energy_j == pytest.approx(exact.energy_j, rel=1e-3)
+
+
+@pytest.mark.parametrize("dt", [1e-4, 1e-5])
+def test_compiled_paper_scheme_is_the_numpy_one(set_a_corrected, dt):
+    """``legacy-compiled`` (the like-for-like baseline, issue 17) gives ``legacy``'s answer on six-rod scenes."""
+    for scene in random_scenes(set_a_corrected, 12, 5):
+        numpy_event = first_impact(scene, "legacy", dt=dt)
+        compiled = first_impact(scene, "legacy-compiled", dt=dt)
+        assert (numpy_event is None) == (compiled is None)
+        if numpy_event is None or compiled is None:
+            continue
+        assert (compiled.rod, compiled.partner) == (numpy_event.rod, numpy_event.partner)
+        assert compiled.time_s == pytest.approx(numpy_event.time_s, abs=1e-12)
+        assert compiled.energy_j == pytest.approx(numpy_event.energy_j, rel=1e-9, abs=1e-30)
+        assert compiled.x_m == pytest.approx(numpy_event.x_m, abs=1e-12)
+
+
+def test_compiled_paper_scheme_rejects_a_bad_step(scenes):
+    with pytest.raises(PhysicsInputError, match=r"dt = 0\.0 s"):
+        first_impact(scenes[0], "legacy-compiled", dt=0.0)
+    with pytest.raises(PhysicsInputError, match="needs a time step"):
+        first_impact(scenes[0], "legacy-compiled")

@@ -34,7 +34,15 @@ class Trace:
 class Rig:
     """Node + controller + a bystander, stepped together at the node's tick."""
 
-    def __init__(self, config: MillConfig, *, fault_injection: bool = True, seed: int = 0) -> None:
+    def __init__(
+        self,
+        config: MillConfig,
+        *,
+        fault_injection: bool = True,
+        seed: int = 0,
+        controller_bus: Callable[[str], can.BusABC] | None = None,
+    ) -> None:
+        """``controller_bus`` opens the controller's bus on the rig's channel (default: a virtual bus)."""
         channel = f"rig-{uuid.uuid4().hex}"
         self.config = config
         self.dt_s = config.timing.node_tick_s
@@ -42,6 +50,9 @@ class Rig:
         self.codec = default_codec()
         self.events: list[Event] = []
         self._buses = [can.Bus(interface="virtual", channel=channel) for _ in range(3)]
+        if controller_bus is not None:
+            self._buses[1].shutdown()
+            self._buses[1] = controller_bus(channel)
         node_bus, controller_bus, self.probe = self._buses
         self.node = Node(config, node_bus, self.clock, fault_injection=fault_injection, seed=seed)
         self.controller = Controller(config, controller_bus, self.clock, listener=self.events.append)

@@ -69,6 +69,11 @@ def status_at(i: int, *, state: str = "RUNNING", trip_cause: str = "") -> Status
         "invalid_frames": 0, "receive_errors": 0,
         "bus_receive": {"frames": 3690, "estops": 0, "malformed": 0, "error_frames": 0, "receive_errors": 0,
                         "capped_drains": 0, "last_error": ""},
+        "bus_health": {"interface": "socketcan", "condition": "error-active",
+                       "state_source": "error frames", "error_frames": 0, "bus_errors": 0, "ack_errors": 0,
+                       "arbitration_lost": 0, "controller_errors": 0, "tx_timeouts": 0, "error_passive_count": 0,
+                       "bus_off_count": 0, "restarts": 0, "tx_error_counter": None, "rx_error_counter": None,
+                       "last_error": ""},
     })
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import httpx
 import pytest
 
@@ -22,7 +24,7 @@ def test_the_plot_marks_the_operating_point_and_colours_the_law() -> None:
     styles = {str(span.style) for span in inside.spans if span.start <= marker < span.end}
     assert "bold red" not in styles
     assert any(str(span.style) == "green" for span in inside.spans)
-    assert any(str(span.style) == "yellow" for span in inside.spans)  # eq. 9 above ω_v ≈ 315 rpm
+    assert any(str(span.style) == "yellow" for span in inside.spans)  # eq. 9 above ω_v = 307.8 rpm
 
     outside = render_plot(CURVE, 60, 12, point=(800.0, 240.0))
     marker = outside.plain.index("●")
@@ -73,3 +75,25 @@ def test_operator_messages_carry_the_services_reason() -> None:
 def test_formatting() -> None:
     assert duration(95.0) == "1:35" and duration(3725.0) == "1:02:05" and duration(None) == "—"
     assert e2e_errors({"ok": 10, "ok-some-lost": 2, "wrong-sequence": 1, "repeated": 2}) == 3
+
+
+def test_the_can_bus_condition_is_shown_by_status_and_the_tui() -> None:
+    from rich.console import Console
+
+    from millctl.cli.client_cmd import render_status
+    from millctl.tui.panels import link_text
+    from tests.unit.tui.frozen import status_at
+
+    healthy = status_at(3)
+    console = Console(width=200, record=True)
+    console.print(render_status(healthy))
+    assert re.search(r"CAN bus +error-active   error frames 0", console.export_text())
+    assert "CAN " not in link_text(healthy).plain, "a healthy bus adds no line to the link panel"
+    off = healthy.model_copy(update={"bus_health": healthy.bus_health.model_copy(
+        update={"condition": "bus-off", "error_frames": 3, "bus_off_count": 1, "tx_error_counter": 255,
+                "rx_error_counter": 0})})
+    console = Console(width=200, record=True)
+    console.print(render_status(off))
+    shown = console.export_text()
+    assert "bus-off   error frames 3" in shown and "TEC 255 REC 0" in shown
+    assert "CAN bus-off   error frames 3" in link_text(off).plain

@@ -1,4 +1,4 @@
-"""Snapshots of the main screen (120 × 40, and 80 × 24) with frozen content; readability under NO_COLOR."""
+"""Snapshots of the main screen and the envelope view (120 × 40, and 80 × 24) with frozen content; NO_COLOR."""
 
 from __future__ import annotations
 
@@ -9,8 +9,11 @@ from typing import Any
 import pytest
 from textual.geometry import Region
 from textual.pilot import Pilot
+from textual.widgets import Static
 
+from millctl.config import LimitLaw
 from millctl.tui import MillApp
+from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.legible import MIN_CONTRAST, contrast
 from tests.unit.tui import frozen
 
@@ -99,3 +102,43 @@ async def test_no_color_keeps_every_text_readable(monkeypatch: pytest.MonkeyPatc
         await pilot.pause()
         assert app.no_color
         assert _low_contrast(app) == []
+
+
+def opened_envelope_view(app: MillApp) -> Callable[[Pilot[None]], Any]:
+    """Feed the app, then open the envelope view (key e)."""
+
+    async def run(pilot: Pilot[None]) -> None:
+        await feeder(app)(pilot)
+        await pilot.press("e")
+        await pilot.pause()
+
+    return run
+
+
+def test_envelope_view_every_law_the_regime_and_the_points(snap_compare: Any, utc: None) -> None:
+    """Which rotary speed is safe: the enforced curve over every other law, the legend, the warning once."""
+    app = MillApp(frozen.SOCKET, live=False)
+    assert snap_compare(app, terminal_size=SIZE, run_before=opened_envelope_view(app))
+
+
+def test_envelope_view_at_80_by_24(snap_compare: Any, utc: None) -> None:
+    app = MillApp(frozen.SOCKET, live=False)
+    assert snap_compare(app, terminal_size=(80, 24), run_before=opened_envelope_view(app))
+
+
+async def test_envelope_view_follows_the_status_and_goes_back() -> None:
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=SIZE) as pilot:
+        await feeder(app)(pilot)
+        await pilot.press("e")
+        await pilot.pause()
+        view = app.screen
+        assert isinstance(view, EnvelopeScreen)
+        legend = str(view.query_one("#envelope-legend", Static).render())
+        assert legend.count("307.8 rpm") == 1 and all(law.value in legend for law in LimitLaw)
+        app.apply_status(frozen.status_at(5))
+        await pilot.pause()
+        assert view.status is not None and view.status.time_s == frozen.status_at(5).time_s
+        await pilot.press("escape")
+        await pilot.pause()
+        assert not isinstance(app.screen, EnvelopeScreen)

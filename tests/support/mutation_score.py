@@ -1,0 +1,88 @@
+"""The mutation score kept in ``mutants/`` by mutmut (``bash .ci/mutation``), whole scope and per module.
+
+``python -m tests.support.mutation_score [GLOB ...]`` reads mutmut's verdicts
+(``mutants/**/*.py.meta``, one exit code per mutant) and prints one line per
+module and one for the whole scope: killed (a test failed, or timed out) of
+the mutants tested, survivors, mutants no test reaches and mutants not yet
+run; then every survivor by name (``mutmut show NAME`` shows its diff). With
+globs, only the mutants whose names match count. Reads only.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import sys
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+KILLED = {1: "killed", 3: "killed", 36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout"}
+"""mutmut's exit codes that mean a test caught the mutant (mutmut.stats.status_by_exit_code)."""
+SURVIVED = 0
+NO_TESTS = {5, 33}
+NOT_RUN = None
+
+
+def verdicts(root: Path, globs: Sequence[str]) -> dict[str, dict[str, int | None]]:
+    """Module name → {mutant name → exit code (None: not run yet)}, for the mutants matching ``globs``."""
+    by_module: dict[str, dict[str, int | None]] = {}
+    for meta in sorted(root.rglob("*.py.meta")):
+        codes: dict[str, int | None] = json.loads(meta.read_text())["exit_code_by_key"]
+        chosen = {
+            name: code for name, code in codes.items() if not globs or any(fnmatch.fnmatch(name, g) for g in globs)
+        }
+        if chosen:
+            module = ".".join(meta.relative_to(root).with_suffix("").with_suffix("").parts)
+            by_module[module] = chosen
+    return by_module
+
+
+def verdict(code: int | None) -> str:
+    """mutmut's exit code of one mutant as a verdict: killed, survived, no tests, not run or other."""
+    if code in KILLED:
+        return "killed"
+    if code == SURVIVED:
+        return "survived"
+    if code in NO_TESTS:
+        return "no tests"
+    return "not run" if code is NOT_RUN else "other"
+
+
+def score_line(label: str, codes: Iterable[int | None]) -> str:
+    """One score line: killed/tested (%), survived, no tests, not run, other (suspicious, skipped, segfault)."""
+    counts = Counter(verdict(code) for code in codes)
+    tested = counts["killed"] + counts["survived"] + counts["other"]
+    percent = 100.0 * counts["killed"] / tested if tested else 0.0
+    return (
+        f"{label}: {counts['killed']}/{tested} killed ({percent:.1f} %); survived {counts['survived']}, "
+        f"no test {counts['no tests']}, not run {counts['not run']}, other {counts['other']}, "
+        f"total {sum(counts.values())}"
+    )
+
+
+def main(argv: Sequence[str]) -> int:
+    root = Path("mutants")
+    if not root.is_dir():
+        print(
+            "error: no mutants/ here: run `bash .ci/mutation` first (docs/safety.md#mutation-testing)", file=sys.stderr
+        )
+        return 2
+    by_module = verdicts(root, argv)
+    if not by_module:
+        print(f"error: no mutant in mutants/ matches {' '.join(argv)!r}", file=sys.stderr)
+        return 2
+    for module, codes in by_module.items():
+        print(score_line(f"  {module}", codes.values()))
+    every = [code for codes in by_module.values() for code in codes.values()]
+    print(score_line("mutation score", every))
+    print("surviving mutants:")
+    for codes in by_module.values():
+        for name, code in codes.items():
+            if code == SURVIVED:
+                print(f"  {name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

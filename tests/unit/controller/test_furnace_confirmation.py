@@ -1,0 +1,127 @@
+"""Furnace targets confirmed apart from the speeds: the node's heater must follow what the controller commands.
+
+docs/safety.md#believe-only-what-was-commanded. The scripted node reports FurnaceTelemetry with the heater
+state and setpoint given, or (``follow``) those of the last Setpoints frame.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from millctl.controller import ControllerState
+from millctl.controller.furnace_expect import FurnaceExpectation
+from millctl.protocol import EStop, FurnaceTelemetry, NodeState, Setpoints
+from tests.unit.controller.bench import ScriptedNode
+
+S = ControllerState
+
+
+@pytest.fixture
+def bench(config):
+    b = ScriptedNode(config)
+    yield b
+    b.close()
+
+
+def running(bench: ScriptedNode) -> None:
+    bench.run(0.2, state=NodeState.DISABLED)
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    move = bench.controller.set_speeds(60.0, 300.0)
+    bench.run(move.duration_s + 0.5, follow=True)
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
+
+
+def heater_frames(bench: ScriptedNode) -> list[Setpoints]:
+    return [d.message for _, d in bench.of(Setpoints) if isinstance(d.message, Setpoints) and d.message.heater_on]
+
+
+def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench):
+    running(bench)
+    bench.controller.set_furnace(30.0)
+    bench.run(17.0, follow=True)  # 5 °C at 20 °C/min: 15 s up, then held
+    assert heater_frames(bench)[-1].furnace_c == 30.0
+    bench.controller.set_furnace(28.0)
+    bench.run(8.0, follow=True)  # and down at the same rate
+    assert heater_frames(bench)[-1].furnace_c == 28.0
+    bench.controller.set_furnace(None)
+    bench.run(3.0, follow=True)
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
+
+
+def test_a_heater_the_node_turns_on_uncommanded_trips(bench, config):
+    running(bench)
+    bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=200.0, heater_on=True)
+    assert bench.controller.state is S.TRIPPED
+    cause = bench.controller.trip_cause
+    assert "heater on at 200.0 °C" in cause and "(heater off over the last" in cause, cause
+    assert f"{config.interlock.debounce_samples} reports in a row" in cause
+
+
+def test_a_furnace_setpoint_above_the_one_commanded_trips(bench):
+    running(bench)
+    bench.controller.set_furnace(40.0)
+    bench.run(3.0, follow=True)
+    top = max(s.furnace_c for s in heater_frames(bench))
+    assert bench.controller.state is S.RUNNING
+    # within the wire's resolution of the highest setpoint commanded: believed
+    bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=top + 0.1, heater_on=True)
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
+    bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=top + 5.0, heater_on=True)
+    assert bench.controller.state is S.TRIPPED
+    assert f"heater on at {top + 5.0:.1f} °C" in bench.controller.trip_cause
+
+
+def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench):
+    running(bench)
+    bench.controller.set_furnace(40.0)
+    window_s = bench.controller.furnace_expectation.window_s
+    # the heater stays off: believed for the window in which it was not yet commanded throughout, and one more
+    bench.run(2 * window_s - 0.2, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0)
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
+    bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0)
+    assert bench.controller.state is S.TRIPPED
+    assert "did not take its furnace target" in bench.controller.trip_cause
+
+
+def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
+    running(bench)
+    bench.controller.set_furnace(40.0)
+    bench.run(5.0, follow=True)
+    bench.run(2.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=25.0, heater_on=True)
+    assert bench.controller.state is S.TRIPPED
+    assert "did not take its furnace target" in bench.controller.trip_cause
+
+
+def test_a_heater_on_after_a_trip_is_an_estop(bench):
+    running(bench)
+    bench.run(0.2, state=NodeState.FAULT)
+    assert bench.controller.state is S.TRIPPED
+    estops = len(bench.of(EStop))
+    bench.run(1.5, state=NodeState.FAULT, setpoint_c=300.0, heater_on=True)
+    assert len(bench.of(EStop)) > estops
+    assert any("heater on at 300.0 °C" in e.message for e in bench.events)
+
+
+def test_a_heater_commanded_off_in_part_of_the_window_bounds_only_from_above() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=1)
+    for k in range(10):
+        expect.commanded(k * 0.1, None)
+    for k in range(10, 20):
+        expect.commanded(k * 0.1, 50.0)
+    off = FurnaceTelemetry(25.0, 25.0, 0.0, False)
+    assert expect.check(1.9, off) is None  # not commanded on for a whole window yet
+    assert expect.check(1.9, FurnaceTelemetry(25.0, 50.0, 10.0, True)) is None
+    assert expect.check(1.9, FurnaceTelemetry(25.0, 50.2, 10.0, True)) is not None
+    expect.reset()
+    for k in range(20, 31):
+        expect.commanded(k * 0.1, 50.0)
+    assert expect.check(3.0, off) is None  # below: counts from now
+    assert expect.check(3.99, off) is None
+    reason = expect.check(4.0, off)
+    assert reason is not None and "heater on at 50.0…50.0 °C" in reason and "below it for 1.0 s" in reason
+
+
+def test_nothing_is_judged_before_anything_was_commanded() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=1)
+    assert expect.check(0.0, FurnaceTelemetry(25.0, 500.0, 100.0, True)) is None
