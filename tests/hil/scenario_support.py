@@ -55,7 +55,7 @@ from millctl.protocol import (
 )
 from millctl.safety import Envelope
 from tests.hil.conftest import IN_VM
-from tests.support.pace import time_scale
+from tests.support.pace import slowdown_now, time_scale
 
 if TYPE_CHECKING:
     import subprocess
@@ -78,6 +78,11 @@ host's rate would load the process under test that much more."""
 def bound_scale() -> float:
     """The factor on every safety bound: ``time_scale()`` inside the VM, 1 on the host (the tight bounds)."""
     return time_scale() if IN_VM else 1.0
+
+
+def load_scale() -> float:
+    """The factor a generated load (flood, babble) is divided by: the VM's slowdown measured now; 1 on the host."""
+    return slowdown_now() if IN_VM else 1.0
 
 
 @dataclass(frozen=True)
@@ -567,6 +572,7 @@ __all__ = [
     "is_command",
     "is_kind",
     "is_status",
+    "load_scale",
     "mill_on",
     "report_timing",
     "upper_bound",

@@ -54,6 +54,7 @@ from tests.hil.scenario_support import (
     is_command,
     is_kind,
     is_status,
+    load_scale,
     mill_on,
     report_timing,
     wait_for,
@@ -428,7 +429,7 @@ def test_babbling_node_controller_stays_responsive_or_trips_with_a_named_cause(
 
     # In the VM the babble is slowed by the measured slowdown: the same load relative to the machine (a node and
     # a controller 25x slower than the host's cannot write, or read, 1000 frames/s; the host tier runs 1000 Hz).
-    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ / bound_scale())
+    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ / load_scale())
     deadline = time.monotonic() + mill.timeout(2.0)
     while time.monotonic() < deadline:  # the API keeps answering under the babble
         during = mill.status()

@@ -156,6 +156,23 @@ def slowdown_against(reference_s: float, measured_s: float | None = None) -> flo
     return max(measured_s / reference_s, 1.0)
 
 
+REFERENCE_ENV = "MILLCTL_PACE_REFERENCE_S"
+"""The host's calibration reference (s of CPU), which ``tests/vm/run`` passes into the VM."""
+
+
+def slowdown_now() -> float:
+    """The slowdown against the host measured now (about 1 s in the VM), at least :func:`time_scale`.
+
+    For a load a scenario generates (a flood, a babble), sized to what the machine manages at that
+    moment: the VM slows down further when the host gets busier after the run measured its scale.
+    Without the host's reference (``$MILLCTL_PACE_REFERENCE_S``, set in the VM) it is :func:`time_scale`.
+    """
+    reference = os.environ.get(REFERENCE_ENV)
+    if not reference:
+        return time_scale()
+    return max(slowdown_against(float(reference)), time_scale())
+
+
 def main(argv: list[str]) -> int:
     """``python -m tests.support.pace --reference`` (host) / ``--scale REF_S`` (VM): print the figure."""
     if argv == ["--reference"]:
@@ -174,11 +191,13 @@ if __name__ == "__main__":
 
 __all__ = [
     "MAX_STRETCH",
+    "REFERENCE_ENV",
     "Deadline",
     "calibration_s",
     "cpu_share",
     "runnable_per_cpu",
     "slowdown_against",
+    "slowdown_now",
     "stretched",
     "time_scale",
 ]

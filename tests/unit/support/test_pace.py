@@ -125,3 +125,14 @@ def test_the_command_line_prints_the_reference_and_the_scale(
     assert pace.main(["--scale", "0.004"]) == 0
     assert capsys.readouterr().out == "25.00\n"
     assert pace.main([]) == 2
+
+
+def test_the_load_scale_is_measured_now_against_the_hosts_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MILLCTL_TIME_SCALE", "20")
+    monkeypatch.delenv(pace.REFERENCE_ENV, raising=False)
+    assert pace.slowdown_now() == 20.0  # no reference (the host): the run's scale
+    monkeypatch.setenv(pace.REFERENCE_ENV, "0.002")
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.09)
+    assert pace.slowdown_now() == pytest.approx(45.0)  # the host got busier since the run measured 20
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.01)
+    assert pace.slowdown_now() == 20.0  # never below the run's scale
