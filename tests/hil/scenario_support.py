@@ -225,12 +225,11 @@ def vm_scaled(key: str, value: float, factor: float) -> float:
 def _scale_keys(text: str, factor: float) -> str:
     """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor`` (held at its upper bound)."""
     for key in VM_SCALED_KEYS:
-        text, found = re.subn(
-            rf"^({key}\s*=\s*)([0-9.]+)",
-            lambda m, key=key: f"{m[1]}{vm_scaled(key, float(m[2]), factor):g}",
-            text,
-            flags=re.MULTILINE,
-        )
+
+        def scaled(match: re.Match[str], key: str = key) -> str:
+            return f"{match[1]}{vm_scaled(key, float(match[2]), factor):g}"
+
+        text, found = re.subn(rf"^({key}\s*=\s*)([0-9.]+)", scaled, text, flags=re.MULTILINE)
         assert found == 1, f"{key} is not in the packaged mill.toml"
     return text
 
