@@ -6,7 +6,15 @@ return them; the CLI and the TUI read them. Nothing here imports the
 controller, so every part of millctl may import it.
 """
 
-from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, StreamKind
+from millctl.api.enums import (
+    BusCondition,
+    ControllerState,
+    ErrorCode,
+    EventKind,
+    RunState,
+    SimFaultName,
+    StreamKind,
+)
 from millctl.api.models import (
     BusHealthOut,
     BusReceiveOut,
@@ -19,9 +27,12 @@ from millctl.api.models import (
     ErrorBody,
     EventOut,
     EventsOut,
+    FaultRequest,
+    FaultsOut,
     FurnaceRequest,
     LeaseOut,
     LinkOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipePauseRequest,
     RecipeProgress,
@@ -55,9 +66,12 @@ __all__ = [
     "EventKind",
     "EventOut",
     "EventsOut",
+    "FaultRequest",
+    "FaultsOut",
     "FurnaceRequest",
     "LeaseOut",
     "LinkOut",
+    "RecipeCheckOut",
     "RecipeOut",
     "RecipePauseRequest",
     "RecipeProgress",
@@ -67,6 +81,7 @@ __all__ = [
     "RunState",
     "ServiceOut",
     "SetpointsRequest",
+    "SimFaultName",
     "StatusOut",
     "StreamKind",
     "Strict",

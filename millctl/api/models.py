@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState
+from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, SimFaultName
 
 
 class Strict(BaseModel):
@@ -289,8 +289,26 @@ class ServiceOut(Strict):
     socket_path: str = Field(description="the Unix socket the API is served on")
     records_dir: str
     bus_log: str = Field(description="this session's bus log file")
+    fault_injection: bool = Field(default=False, description="an instructor may inject the simulated node's faults "
+                                  "(serve --fault-injection; only on a simulated mill): /v1/sim/faults exists")
     warnings: list[str] = Field(default_factory=list, description="what the operator must know about the service "
                                 "itself, e.g. records that cannot be written (the mill is controlled as before)")
+
+
+# ---------------------------------------------------------------- fault drills (serve --fault-injection)
+class FaultRequest(Strict):
+    """Inject (or clear) one fault of the simulated node; ``CLEAR`` clears them all."""
+
+    fault: SimFaultName = Field(description="the fault (docs/operations.md#fault-injection)")
+    active: bool = Field(default=True, description="true injects it, false clears it")
+    param: float = Field(default=0.0, allow_inf_nan=False, ge=-1e6, le=1e6,
+                         description="its parameter: rpm, a probability 0–1, Hz or a heater mode, by fault")
+
+
+class FaultsOut(Strict):
+    """The faults injected into the simulated node now, with their parameter."""
+
+    active: dict[SimFaultName, float] = Field(description="injected fault → its parameter")
 
 
 # ---------------------------------------------------------------- recipes
@@ -303,6 +321,21 @@ class RecipeRunRequest(Strict):
     name: str = Field(min_length=1, max_length=255, pattern=r"^[^\x00-\x1f\x7f]+$",
                       description="where the recipe came from, for the run record (no control characters)")
     text: str = Field(min_length=1, max_length=512 * 1024, description="the recipe file's TOML text")
+
+
+class RecipeCheckOut(Strict):
+    """A recipe's pre-flight against the service's own envelope: nothing is started, no control needed."""
+
+    source: str = Field(description="the name the recipe was sent under (its file name)")
+    recipe: str | None = Field(description="the recipe's own name; null when its text is not a valid recipe")
+    ok: bool = Field(description="true when it is a valid recipe whose whole plan stays inside the envelope")
+    steps: int = Field(description="number of steps (0 when invalid)")
+    planned_s: float | None = Field(description="planned time with the final stop (s); open-ended steps count 0")
+    open_ended: bool = Field(description="true when some step waits for the furnace or the operator")
+    dose_kj_g: float | None = Field(description="expected specific energy dose (kJ per g of powder)")
+    law: str = Field(description="the limit law it was checked under")
+    problems: list[str] = Field(description="why it would be refused: every envelope violation (step, time, "
+                                "value, limit) or every invalid field; empty when ok")
 
 
 class RecipePauseRequest(Strict):
@@ -346,9 +379,12 @@ __all__ = [
     "ErrorBody",
     "EventOut",
     "EventsOut",
+    "FaultRequest",
+    "FaultsOut",
     "FurnaceRequest",
     "LeaseOut",
     "LinkOut",
+    "RecipeCheckOut",
     "RecipeOut",
     "RecipePauseRequest",
     "RecipeProgress",

@@ -30,6 +30,7 @@ from millctl.api import (
     EventsOut,
     FurnaceRequest,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipePauseRequest,
     RecipeProgress,
@@ -44,6 +45,8 @@ from millctl.controller import Controller
 from millctl.safety import InterlockRefused
 from millctl.service.envelope_view import envelope_out
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
+from millctl.service.faults import add_fault_routes
+from millctl.service.headers import ClientName, LeaseId, client_source
 from millctl.service.journal import finite
 from millctl.service.limits import BodyLimit
 from millctl.service.runtime import ServiceRuntime
@@ -66,16 +69,6 @@ SETTLES_IN: dict[str, frozenset[ControllerState]] = {
 }
 """The states a command leads to once the node has answered (a trip ends the wait too)."""
 
-ClientName = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
-]
-LeaseId = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_-]{1,64}$", description="the lease id from POST /v1/control/take"),
-]
-
-
 def create_app(runtime: ServiceRuntime) -> FastAPI:
     """The API of one running service."""
     app = FastAPI(
@@ -88,8 +81,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=runtime.config.service.max_request_bytes)
     rt = runtime
 
-    def source(name: str | None) -> str:
-        return f"api:{name or 'anonymous'}"
+    if rt.fault_injection:
+        add_fault_routes(app, rt)
 
     def command(lease: str | None, what: str, action: Any, *, idle: bool = True, settles: str = "") -> CommandOut:
         """Check the lease, run ``action(controller, source)`` under the lock, and answer with the state it led to.
@@ -178,7 +171,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         body: Annotated[TakeRequest | None, Body()] = None,
     ) -> LeaseOut:
         """Take control (or renew it); ``force`` takes over an expired lease, never a live one."""
-        holder = source(x_millctl_client)
+        holder = client_source(x_millctl_client)
         lease, taken_from = rt.leases.take(holder, lease_id=x_millctl_lease, force=bool(body and body.force))
         if x_millctl_lease != lease.lease_id:  # a new lease, not a renewal
             note = f" (took over the expired lease of {taken_from})" if taken_from else ""
@@ -222,7 +215,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
         """Emergency stop: needs no lease and is always accepted."""
-        who = source(x_millctl_client)
+        who = client_source(x_millctl_client)
 
         def act(c: Controller) -> CommandOut:
             rt.recipe.abort_if_active(who)
@@ -283,6 +276,15 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         rt.leases.check(x_millctl_lease)
         loaded, plan = rt.recipe.prepare(body.name, body.text, rt.config)  # in this request's thread, not the loop
         return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who))
+
+    @app.post("/v1/recipe/check", response_model=RecipeCheckOut, responses=READ_RESPONSES, tags=["recipe"])
+    def recipe_check(body: RecipeRunRequest) -> RecipeCheckOut:
+        """Pre-flight a recipe sent as its TOML text against this service's envelope; nothing is started.
+
+        Answers 200 for a recipe that would be refused too, with every problem: a client can list recipes
+        with their verdicts (the TUI's recipe list) without holding control.
+        """
+        return rt.recipe.check(body.name, body.text, rt.config)
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_pause(

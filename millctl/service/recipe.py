@@ -13,10 +13,11 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from millctl.api import RecipeCheckOut
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.controller import CommandRefused, Controller
-from millctl.errors import InterlockError
+from millctl.errors import InterlockError, RecipeError
 from millctl.recipes import LoadedRecipe, RecipePlan, parse_recipe, plan_recipe
 from millctl.recipes.plan import Violation
 from millctl.recipes.runner import RecipeRunner
@@ -68,6 +69,22 @@ class RecipeSlot:
         if not plan.ok:
             raise RecipeRefused(loaded.source, plan.law, plan.violations)
         return loaded, plan
+
+    @staticmethod
+    def check(name: str, text: str, config: MillConfig) -> RecipeCheckOut:
+        """Pre-flight a recipe's text without starting it: every violation or invalid field, or its plan."""
+        law = config.interlock.law.value
+        try:
+            loaded = parse_recipe(text, name)
+        except RecipeError as exc:
+            return RecipeCheckOut(source=name, recipe=None, ok=False, steps=0, planned_s=None, open_ended=False,
+                                  dose_kj_g=None, law=law, problems=exc.problems)
+        plan = plan_recipe(loaded.recipe, config)
+        return RecipeCheckOut(
+            source=name, recipe=loaded.recipe.recipe.name, ok=plan.ok, steps=len(plan.steps),
+            planned_s=plan.total_s, open_ended=any(step.open_ended for step in plan.steps),
+            dose_kj_g=plan.total_dose_kj_g, law=plan.law, problems=[str(v) for v in plan.violations],
+        )
 
     def start(self, loaded: LoadedRecipe, plan: RecipePlan, source: str) -> dict[str, Any]:
         """Start a prepared run (in the loop); return its progress."""

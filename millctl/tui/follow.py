@@ -53,6 +53,7 @@ class Following(MillView):
             self.service_started = service.started_unix
             self.last_seq = 0
             self.link.client.lease_id = None  # a lease does not outlive its service
+        self.apply_service(service)
         self.apply_envelope(await client.envelope(points=161))
         self.apply_status(await client.status())
         self.apply_control(await client.control_state())
