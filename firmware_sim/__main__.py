@@ -21,7 +21,7 @@ from millctl.clock import MonotonicClock
 from millctl.config import load_config
 from millctl.config.models import Bus
 from millctl.errors import ExitCode, MillctlError
-from millctl.protocol.factory import open_bus
+from millctl.protocol.factory import open_bus, open_estop_channel
 
 log = logging.getLogger("firmware_sim")
 
@@ -127,10 +127,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:  # pydantic's ValidationError of an override
         log.error("invalid --interface/--channel: %s", exc)
         return int(ExitCode.INVALID_INPUT)
+    try:
+        estop_bus = open_estop_channel(bus_config)  # a flood cannot crowd an E-stop out of its own queue
+    except MillctlError as exc:
+        bus.shutdown()
+        log.error("%s", exc)
+        return int(exc.exit_code)
     stop = _Stop()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
-    node = Node(config, bus, MonotonicClock(), fault_injection=args.fault_injection, seed=args.seed)
+    node = Node(
+        config, bus, MonotonicClock(), fault_injection=args.fault_injection, seed=args.seed, estop_bus=estop_bus
+    )
     try:
         log.info("node on %s %s, tick %.3f s", bus_config.interface, bus_config.channel, config.timing.node_tick_s)
         _run(node, config.timing.node_tick_s, stop)
@@ -138,6 +146,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         node.close()
         bus.shutdown()
+        if estop_bus is not None:
+            estop_bus.shutdown()
     return int(ExitCode.OK)
 
 

@@ -74,6 +74,7 @@ class Node:
         seed: int = 0,
         codec: Codec | None = None,
         physics_worker: PhysicsWorker = "inline",
+        estop_bus: can.BusABC | None = None,
     ) -> None:
         self.config = config
         self.bus = bus
@@ -83,7 +84,7 @@ class Node:
         self.drives = DrivePair(config, np.random.default_rng(seed))
         self.furnace = FurnaceModel(config.furnace, config.timing.node_tick_s)
         self.faults = FaultInjector(config, self.drives, self.furnace, enabled=fault_injection, seed=seed)
-        self.reader = BusReader(bus, "node")
+        self.reader = BusReader(bus, "node", estop_bus=estop_bus)  # estop_bus: E-stops only (SocketCAN)
         self.link = LinkMonitor(config)
         self.monitor = SpeedMonitor(config, self.envelope)
         self.motion = Motion(config, self.envelope)

@@ -35,6 +35,7 @@ from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable, 
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Generic, ParamSpec, TypeVar, overload
+from urllib.parse import quote
 
 import httpx
 from httpx_sse import ServerSentEvent, aconnect_sse, connect_sse
@@ -52,10 +53,13 @@ from millctl.api import (
     LeaseOut,
     RecipeCheckOut,
     RecipeOut,
+    RecipeResumeOut,
     ServiceOut,
     SimFaultName,
     StatusOut,
     StreamKind,
+    UnfinishedRunOut,
+    UnfinishedRunsOut,
 )
 from millctl.client_errors import (
     AccessDenied,
@@ -305,6 +309,21 @@ def _recipe() -> Request:
     return _get("/v1/recipe")
 
 
+def _recipe_unfinished() -> Request:
+    """The interrupted runs in the service's records (GET /v1/recipe/unfinished)."""
+    return _get("/v1/recipe/unfinished")
+
+
+def _recipe_resume_run(run_id: str, *, confirm: bool, text: str | None = None) -> Request:
+    """Check (``confirm`` false) or resume an interrupted run; ``text``: the recipe, if the record keeps none."""
+    return _post(f"/v1/recipe/unfinished/{quote(run_id, safe='')}/resume", {"confirm": confirm, "text": text})
+
+
+def _recipe_close_run(run_id: str) -> Request:
+    """Close an interrupted run for good: its record ends ABORTED (needs control)."""
+    return _post(f"/v1/recipe/unfinished/{quote(run_id, safe='')}/abort")
+
+
 class _Base:
     """What both clients share: where to connect, who we are, the lease and the last event seen."""
 
@@ -414,6 +433,9 @@ class Operations(_Base):
     recipe_resume = Operation(RecipeOut, _recipe_resume)
     recipe_abort = Operation(RecipeOut, _recipe_abort)
     recipe = Operation(RecipeOut, _recipe)
+    recipe_unfinished = Operation(UnfinishedRunsOut, _recipe_unfinished)
+    recipe_resume_run = Operation(RecipeResumeOut, _recipe_resume_run)
+    recipe_close_run = Operation(UnfinishedRunOut, _recipe_close_run)
     recipe_check = Operation(RecipeCheckOut, _recipe_check)
     faults = Operation(FaultsOut, _faults)
     inject_fault = Operation(FaultsOut, _inject_fault)

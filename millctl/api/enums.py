@@ -52,6 +52,9 @@ class RunState(enum.StrEnum):
     DONE = "DONE"
     ABORTED = "ABORTED"
     FAILED = "FAILED"
+    INTERRUPTED = "INTERRUPTED"
+    """The service stopped (or died) under the run: it is unfinished, and ``millctl recipe resume RUN`` continues it
+    (docs/operations.md#resume)."""
 
     @property
     def final(self) -> bool:
@@ -124,6 +127,7 @@ class ErrorCode(enum.StrEnum):
     BUSY = "busy"
     BODY_TOO_LARGE = "body_too_large"
     BAD_REQUEST = "bad_request"
+    RUN_NOT_FOUND = "run_not_found"
     HTTP_ERROR = "http_error"
 
 

@@ -12,7 +12,7 @@ from millctl.protocol.buslog import RotatingBusLog
 from millctl.protocol.codec import DBC_NAME, Codec, Decoded, default_codec
 from millctl.protocol.e2e import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
 from millctl.protocol.errors import ProtocolError, SignalRangeError
-from millctl.protocol.factory import bus_kwargs, open_bus
+from millctl.protocol.factory import bus_kwargs, estop_channel_kwargs, open_bus, open_estop_channel
 from millctl.protocol.messages import (
     ESTOP_ID,
     MESSAGE_TYPES,
@@ -80,6 +80,8 @@ __all__ = [
     "crc8_sae_j1850",
     "default_codec",
     "e2e_crc",
+    "estop_channel_kwargs",
     "is_estop",
     "open_bus",
+    "open_estop_channel",
 ]

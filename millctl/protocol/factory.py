@@ -4,6 +4,11 @@ Nothing else in millctl names a python-can interface. ``udp_multicast`` and
 ``millctl_udp_multicast`` both open :class:`~millctl.protocol.udp.EchoFreeUdpMulticastBus`
 (no self-echo, TTL 0 enforced), because the stock interface hands a sender
 its own frames back, which no real CAN bus does.
+
+:func:`open_estop_channel` opens a second receive channel that carries only the
+E-stop identifier, where the interface filters in the kernel (SocketCAN): the
+equivalent of a CAN controller's dedicated receive mailbox, so that no flood on
+other identifiers can fill the queue an E-stop has to reach a loop through.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import can
 
 from millctl.config.bus import DOCS, FD_DATA_BITRATE_KWARG, NUMBERED_CHANNEL, Bus, python_can_page
 from millctl.errors import BusError
+from millctl.protocol.messages import ESTOP_ID
 
 log = logging.getLogger(__name__)
 
@@ -74,4 +80,47 @@ def open_bus(bus_config: Bus) -> can.BusABC:
     return bus
 
 
-__all__ = ["bus_kwargs", "open_bus"]
+KERNEL_FILTERED = frozenset({"socketcan"})
+"""python-can interfaces whose receive filters run in the kernel: a filtered socket gets its own queue."""
+STANDARD_ID_MASK = 0x7FF
+"""Every bit of an 11-bit identifier."""
+
+
+def estop_channel_kwargs(bus_config: Bus) -> dict[str, Any] | None:
+    """``can.Bus`` keyword arguments of an E-stop-only receive channel; None where filters are not in the kernel.
+
+    On SocketCAN each socket has its own receive queue and the kernel filters
+    before queueing, so a socket filtered to ``ESTOP_ID`` holds E-stops only,
+    however full the main socket's queue is. On udp_multicast (every socket
+    gets every datagram; python-can filters after reading) and virtual, a
+    second socket would read the whole bus again for nothing: there the loops
+    rely on draining fully with the E-stop first (:mod:`millctl.protocol.receive`).
+    """
+    kwargs = bus_kwargs(bus_config)
+    if kwargs["interface"] not in KERNEL_FILTERED:
+        return None
+    kwargs["can_filters"] = [{"can_id": ESTOP_ID, "can_mask": STANDARD_ID_MASK, "extended": False}]
+    kwargs["ignore_rx_error_frames"] = True  # the main socket reports error frames (bus health); this one E-stops only
+    return kwargs
+
+
+def open_estop_channel(bus_config: Bus) -> can.BusABC | None:
+    """Open the E-stop-only receive channel (:func:`estop_channel_kwargs`), or None where there is none.
+
+    A failure is a :class:`~millctl.errors.BusError` naming the bus, as for :func:`open_bus`.
+    """
+    kwargs = estop_channel_kwargs(bus_config)
+    if kwargs is None:
+        return None
+    try:
+        bus = can.Bus(**kwargs)
+    except (can.CanError, OSError, ValueError, TypeError) as exc:
+        raise BusError(
+            f"cannot open the E-stop receive channel (interface {bus_config.interface}, channel "
+            f"{bus_config.channel!r}, filter 0x{ESTOP_ID:03X}): {exc}"
+        ) from exc
+    log.info("opened the E-stop receive channel on %s (filter 0x%03X)", bus.channel_info, ESTOP_ID)
+    return bus
+
+
+__all__ = ["KERNEL_FILTERED", "bus_kwargs", "estop_channel_kwargs", "open_bus", "open_estop_channel"]

@@ -12,6 +12,13 @@ tick through a :class:`BusReader` (SAFETY.md items 19 and 22):
   length, any content, any sender; not error frames) are reported as
   ``Batch.estop`` apart from the rest, so the caller acts on them before
   anything else read in the same drain.
+- **An E-stop channel of its own.** Where the interface filters in the kernel
+  (SocketCAN), the loops also read a second socket that carries the E-stop
+  identifier only (``estop_bus``, :func:`~millctl.protocol.factory.open_estop_channel`),
+  before and after the main drain. Each socket has its own receive queue, so
+  a flood the loop cannot keep up with fills the main queue, drops frames
+  there, and cannot drop an E-stop (seen in the vcan VM: a flood on 0x001
+  faster than the node could read lost the one E-stop sent into it).
 - **No input kills the reader.** A receive error (``can.CanError`` or
   ``OSError`` from the interface, e.g. an undecodable datagram or a socket
   error) is counted, logged and skipped: the drain goes on with the next
@@ -92,6 +99,7 @@ class BusReader:
         bus: can.BusABC,
         name: str,
         *,
+        estop_bus: can.BusABC | None = None,
         max_frames: int = MAX_FRAMES_PER_DRAIN,
         max_consecutive_errors: int = MAX_CONSECUTIVE_ERRORS,
     ) -> None:
@@ -101,17 +109,25 @@ class BusReader:
                 f"{max_consecutive_errors} must both be ≥ 1"
             )
         self.bus = bus
+        self.estop_bus = estop_bus
+        """A receive channel that carries E-stops only (None where the interface has none)."""
+        self.estop_channel_frames = 0
+        """E-stops read on that channel (each is also read on the main bus, unless its queue dropped it)."""
         self.name = name
         self.max_frames = max_frames
         self.max_consecutive_errors = max_consecutive_errors
         self.counts = ReceiveCounts()
 
     def drain(self) -> Batch:
-        """Read every frame waiting (bounded by ``max_frames``); never raises for anything the bus delivers."""
+        """Read every frame waiting (bounded by ``max_frames``); never raises for anything the bus delivers.
+
+        The E-stop channel, if any, is read before the main bus and again after it, so an E-stop that
+        arrives while a long drain runs is still reported by this one.
+        """
         counts = self.counts
         frames: list[can.Message] = []
         error_frames: list[can.Message] = []
-        estop = False
+        estop = self._estop_channel()
         errors_in_a_row = 0
         for _ in range(self.max_frames):
             try:
@@ -125,7 +141,7 @@ class BusReader:
                 continue
             errors_in_a_row = 0
             if frame is None:
-                return Batch(estop, frames, error_frames)
+                break
             counts.frames += 1
             if is_estop(frame):
                 counts.estops += 1
@@ -139,7 +155,29 @@ class BusReader:
         else:
             counts.capped_drains += 1
             self._note("drain stopped at its bound", counts.capped_drains, f"{self.max_frames} reads in one tick")
+        estop = self._estop_channel() or estop
         return Batch(estop, frames, error_frames)
+
+    def _estop_channel(self) -> bool:
+        """Read the E-stop channel empty (bounded); True when it held an E-stop. Never raises for bus input."""
+        bus = self.estop_bus
+        if bus is None:
+            return False
+        counts = self.counts
+        found = False
+        for _ in range(self.max_consecutive_errors):
+            try:
+                frame = bus.recv(timeout=0.0)
+            except (can.CanError, OSError, ValueError) as exc:
+                counts.receive_errors += 1
+                self._note("receive error on the E-stop channel", counts.receive_errors, f"{type(exc).__name__}: {exc}")
+                continue
+            if frame is None:
+                break
+            if is_estop(frame):  # the kernel's filter passes nothing else; a frame that is no E-stop is ignored
+                self.estop_channel_frames += 1
+                found = True
+        return found
 
     def malformed(self, frame: can.Message, reason: object) -> None:
         """Count (and log, bounded) a frame that does not fit the DBC; the caller drops it."""

@@ -154,6 +154,11 @@ class ServiceRuntime:
         self.bus_warnings = startup_link_problems(self.config.bus)
         for problem in self.bus_warnings:
             self.journal.add(EventKind.BUS, "service", problem)
+        for run in self.recipe.unfinished():  # the runs a crash, a kill or a reboot left unfinished: offered, never run
+            self.journal.add(EventKind.SERVICE, "service", f"unfinished run {run.run_id} ({run.recipe}, step "
+                             f"{min(run.step, run.steps)}/{run.steps}): {run.reason}; `millctl recipe resume "
+                             f"{run.run_id}` continues it after a pre-flight, `millctl recipe abort {run.run_id}` "
+                             "closes it", run_id=run.run_id, record=str(run.path))
         self._thread.start()
 
     def wait_for_node(self, timeout_s: float) -> bool:
@@ -278,15 +283,19 @@ class ServiceRuntime:
             law=env.law.value, margin=env.margin, bus_interface=self.config.bus.interface,
             bus_channel=self.config.bus.channel, embedded_node=self.node is not None, socket_path=self.socket_path,
             records_dir=str(self.records_dir), bus_log=str(self.bus_log_path), warnings=self.warnings(),
+            unfinished_runs=[run.run_id for run in self.recipe.unfinished()],
         )
 
     def warnings(self) -> list[str]:
-        """What the operator must know about the service itself (its CAN link, records that cannot be written)."""
+        """What the operator must know about the service: its CAN link, records not written, interrupted runs."""
+        found = [f"run {run.run_id} ({run.recipe}) is unfinished at step {min(run.step, run.steps)}/{run.steps}: "
+                 f"{run.reason}; `millctl recipe resume {run.run_id}` continues it"
+                 for run in self.recipe.unfinished()]
         if self.records_warning is None:
-            return list(self.bus_warnings)
+            return [*self.bus_warnings, *found]
         return [*self.bus_warnings,
                 f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
-                f"records dir {self.records_dir}); the mill is controlled as before"]
+                f"records dir {self.records_dir}); the mill is controlled as before", *found]
 
     def _records_changed(self, failing: str | None) -> None:
         """On the records thread: writes started failing (or work again). Warn, record, stop a recipe."""
@@ -339,7 +348,7 @@ class ServiceRuntime:
         bound_s = self.stop_bound_s() if bound_s is None else bound_s
         if self.running:
             with self.lock:
-                self.recipe.abort_if_active("service", reason=reason)
+                self.recipe.interrupt_if_active(reason)  # stopped with the mill, resumable after the restart
                 if self.controller.state in (S.ARMED, S.RUNNING, S.STOPPING):
                     self.controller.stop(source="service", reason=reason)
             stopped = self._wait(self._at_rest, bound_s)

@@ -29,11 +29,12 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import can
 import pytest
+from pydantic import BaseModel
 
 from millctl.client import DEFAULT_TIMEOUT_S, Client
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
-from millctl.config.models import Bus, MillConfig
+from millctl.config.models import Bus, Furnace, Interlock, MillConfig, Timing
 from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.errors import MillctlError
 from millctl.protocol import (
@@ -54,7 +55,7 @@ from millctl.protocol import (
 )
 from millctl.safety import Envelope
 from tests.hil.conftest import IN_VM
-from tests.support.pace import time_scale
+from tests.support.pace import slowdown_now, time_scale
 
 if TYPE_CHECKING:
     import subprocess
@@ -69,7 +70,9 @@ STANDSTILL_RPM = 1.0
 SCHEDULING_ALLOWANCE_S = 0.05
 """Added to every reaction bound on the host (s): late wake-ups of non-real-time processes on a loaded machine."""
 POLL_S = 0.02
-"""How often the wait helpers look again (s)."""
+"""How often the wait helpers look again (s), times ``bound_scale()``: in the VM each status request costs the
+service (whose control loop shares its process) the measured factor times the host's CPU, so polling at the
+host's rate would load the process under test that much more."""
 
 
 # --- bounds ---------------------------------------------------------------------------------------------------
@@ -78,6 +81,11 @@ POLL_S = 0.02
 def bound_scale() -> float:
     """The factor on every safety bound: ``time_scale()`` inside the VM, 1 on the host (the tight bounds)."""
     return time_scale() if IN_VM else 1.0
+
+
+def load_scale() -> float:
+    """The factor a generated load (flood, babble) is divided by: the VM's slowdown measured now; 1 on the host."""
+    return slowdown_now() if IN_VM else 1.0
 
 
 @dataclass(frozen=True)
@@ -107,7 +115,11 @@ class Bounds:
         return float(os.environ.get("MILLCTL_HIL_SCHEDULING_S", SCHEDULING_ALLOWANCE_S))
 
     def scaled(self, seconds: float) -> float:
-        """``seconds`` of designed reaction plus the scheduling allowance, times the VM's factor."""
+        """``seconds`` of processes reacting (ticks, frame periods) plus the scheduling allowance, times the VM factor.
+
+        Only what processes take scales here; a timeout of the config (``VM_SCALED_KEYS``) is added
+        as it stands in the config in force, which inside the VM is already scaled.
+        """
         return (seconds + self.scheduling_s) * bound_scale()
 
     @property
@@ -119,7 +131,7 @@ class Bounds:
     def watchdog_s(self) -> float:
         """Last heartbeat on the bus → NodeStatus FAULT/WATCHDOG: the timeout, one node tick, one status period."""
         timing = self.config.timing
-        return self.scaled(timing.watchdog_timeout_s + timing.node_tick_s + self._period(NodeStatus))
+        return timing.watchdog_timeout_s + self.scaled(timing.node_tick_s + self._period(NodeStatus))
 
     @property
     def measured_trip_s(self) -> float:
@@ -139,12 +151,12 @@ class Bounds:
         interlock = self.config.interlock
         periods = [self._period(kind) for kind in SAFETY_RELEVANT]
         stale = max(max(interlock.stale_periods * p, interlock.min_stale_s) for p in periods)
-        return self.scaled(stale + self.config.timing.controller_tick_s)
+        return stale + self.scaled(self.config.timing.controller_tick_s)
 
     @property
     def heartbeat_gap_s(self) -> float:
         """The longest gap between controller heartbeats the node tolerates: its watchdog timeout (not padded)."""
-        return self.config.timing.watchdog_timeout_s * bound_scale()
+        return self.config.timing.watchdog_timeout_s
 
 
 # --- timing report --------------------------------------------------------------------------------------------
@@ -179,44 +191,77 @@ def _toml_value(value: Any) -> str:
     return json.dumps(value)
 
 
-VM_SCALED_KEYS = (
-    "watchdog_timeout_s",
-    "challenge_lifetime_s",
-    "min_stale_s",
-    "setpoint_refresh_s",
-    "startup_grace_s",
-    "setpoint_period_s",
-)
-"""Periods and timeouts of the config multiplied by the VM's measured slowdown there.
+VM_SCALED_KEYS: dict[str, type[BaseModel]] = {
+    "watchdog_timeout_s": Timing,
+    "challenge_lifetime_s": Timing,
+    "setpoint_period_s": Timing,
+    "min_stale_s": Interlock,
+    "startup_grace_s": Interlock,
+    "setpoint_refresh_s": Furnace,
+}
+"""Periods and timeouts of the config multiplied by the VM's measured slowdown there (and their config section).
 
-Python under emulation runs several times slower (``tests/vm/run`` measures how much), so it cannot
+Python under emulation runs many times slower (``tests/vm/run`` measures how much), so it cannot
 meet the host's periods: frames arrive in bursts, and a setpoint step that the node allows per
 ``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh, start-up
 grace and challenge bounds would expire between two slow ticks. Scaling them all by one factor
-keeps their ratios.
+keeps their ratios. A scaled value is held at its field's upper bound in the config model (e.g.
+``setpoint_refresh_s`` ≤ 60 s), so that the config stays valid at any factor.
 """
 
 
+def upper_bound(section: type[BaseModel], key: str) -> float:
+    """The largest value the config model accepts for ``key`` (its ``le``/``lt`` constraint; inf when none)."""
+    bound = math.inf
+    for constraint in section.model_fields[key].metadata:
+        for name in ("le", "lt"):
+            if (value := getattr(constraint, name, None)) is not None:
+                bound = min(bound, float(value))
+    return bound
+
+
+def vm_scaled(key: str, value: float, factor: float) -> float:
+    """``value`` of the config key ``key`` times ``factor``, held at the key's upper bound."""
+    return min(value * factor, upper_bound(VM_SCALED_KEYS[key], key))
+
+
 def _scale_keys(text: str, factor: float) -> str:
-    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor``."""
+    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor`` (held at its upper bound)."""
     for key in VM_SCALED_KEYS:
-        text, found = re.subn(
-            rf"^({key}\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) * factor:g}", text, flags=re.MULTILINE
-        )
+
+        def scaled(match: re.Match[str], key: str = key) -> str:
+            return f"{match[1]}{vm_scaled(key, float(match[2]), factor):g}"
+
+        text, found = re.subn(rf"^({key}\s*=\s*)([0-9.]+)", scaled, text, flags=re.MULTILINE)
         assert found == 1, f"{key} is not in the packaged mill.toml"
     return text
 
 
-def write_config(directory: Path, transport: Transport) -> Path:
+def _dilate_drives(text: str, factor: float) -> str:
+    """``text`` with both drives' ``max_accel_rpm_s`` divided by ``factor``."""
+    text, found = re.subn(
+        r"^(max_accel_rpm_s\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) / factor:g}", text, flags=re.MULTILINE
+    )
+    assert found == 2, "the packaged mill.toml should set max_accel_rpm_s for the rotary and the vibration drive"
+    return text
+
+
+def write_config(directory: Path, transport: Transport, *, dilate_drives: bool = False) -> Path:
     """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
 
-    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (10): the VM
-    checks behaviour and frame flow, the host the tight timing.
+    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (the measured
+    slowdown): the VM checks behaviour and frame flow, the host the tight timing. ``dilate_drives``
+    also divides the drives' accelerations by it there, so that time is dilated throughout: a rate
+    rule (the node's step bound: its rate × its window, the watchdog timeout) then allows in rpm what
+    it allows on the host, at the cost of ramps that many times longer. For the scenarios whose
+    subject is that rule; the others keep the host's drives.
     """
     text = packaged_file("mill.toml").read_text(encoding="utf-8")
     head = text.partition("[bus]")[0]
     if bound_scale() > 1.0:
         head = _scale_keys(head, bound_scale())
+        if dilate_drives:
+            head = _dilate_drives(head, bound_scale())
     sections = {
         "bus": transport.bus_config_fields(),
         "service": {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")},
@@ -345,7 +390,7 @@ class Probe:
                 return found[0]
             if time.monotonic() > deadline:
                 pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s")
-            time.sleep(POLL_S)
+            time.sleep(POLL_S * bound_scale())
 
     def latest(self, kind: type[MillMessage]) -> Any:
         """The newest decoded message of ``kind`` (None before the first)."""
@@ -380,7 +425,7 @@ def wait_for(condition: Callable[[], T | None], timeout_s: float, what: str | Ca
             detail = f" (last error: {error})" if error else ""
             described = what() if callable(what) else what
             pytest.fail(f"timed out after {timeout_s:.1f} s waiting for {described}{detail}")
-        time.sleep(POLL_S)
+        time.sleep(POLL_S * bound_scale())
 
 
 class Mill:
@@ -391,10 +436,10 @@ class Mill:
     reaction-time bounds.
     """
 
-    def __init__(self, transport: Transport, spawn: Spawner, directory: Path) -> None:
+    def __init__(self, transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> None:
         self.transport = transport
         self.spawn = spawn
-        self.config_path = write_config(directory, transport)
+        self.config_path = write_config(directory, transport, dilate_drives=dilate_drives)
         self.config = load_config(self.config_path).config
         self.codec = default_codec()
         self.bounds = Bounds(self.config, self.codec)
@@ -514,9 +559,9 @@ class Mill:
 
 
 @contextlib.contextmanager
-def mill_on(transport: Transport, spawn: Spawner, directory: Path) -> Iterator[Mill]:
-    """A started mill on ``transport``, torn down afterwards."""
-    mill = Mill(transport, spawn, directory)
+def mill_on(transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> Iterator[Mill]:
+    """A started mill on ``transport``, torn down afterwards (``dilate_drives``: see :func:`write_config`)."""
+    mill = Mill(transport, spawn, directory, dilate_drives=dilate_drives)
     try:
         mill.start()
         yield mill
@@ -535,8 +580,11 @@ __all__ = [
     "is_command",
     "is_kind",
     "is_status",
+    "load_scale",
     "mill_on",
     "report_timing",
+    "upper_bound",
+    "vm_scaled",
     "wait_for",
     "write_config",
 ]

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import pytest
 
 from firmware_sim.faults import BABBLE_ID
-from firmware_sim.motion import Motion
+from firmware_sim.motion import ACCEL_SLACK_FACTOR, ACCEL_SLACK_RPM, Motion
 from millctl.client import InterlockRefusal
 from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.protocol import (
@@ -50,9 +50,11 @@ from tests.hil.scenario_support import (
     Mill,
     Probe,
     Seen,
+    bound_scale,
     is_command,
     is_kind,
     is_status,
+    load_scale,
     mill_on,
     report_timing,
     wait_for,
@@ -198,24 +200,52 @@ def refused_since(count_before: int) -> Callable[[Seen], bool]:
     return lambda s: isinstance(s.message, NodeStatus) and s.message.refused_setpoints != count_before
 
 
+@pytest.fixture
+def rogue_mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[Mill]:
+    """Like ``bus_mill``, with the drives' rates dilated in the VM like its periods (``write_config``)."""
+    if not transport.crosses_processes:
+        pytest.skip(NEEDS_PROBE)
+    with mill_on(transport, spawn, tmp_path, dilate_drives=True) as started:
+        yield started
+
+
+def raw_jump_target(mill: Mill) -> tuple[float, float]:
+    """A pair inside the envelope, one step from ``LOW_RPM`` larger than the node ever allows at once (rpm).
+
+    The node's rate bound per drive (firmware_sim/motion.py) holds at most a burst of
+    ``ACCEL_SLACK_FACTOR × max_accel × watchdog_timeout_s + ACCEL_SLACK_RPM`` (45.2 rpm on ω_v with
+    the packaged config), however long the sender waited; the jump is 10 rpm more than that, on the
+    vibration drive, whose range leaves the most room inside the envelope. The VM scales the
+    watchdog by its slowdown, and the burst with it: a fixed jump (60 rpm on ω_r) was allowed there
+    (60.2 rpm at a factor of 10), so this scenario dilates the drives' rates too (``rogue_mill``).
+    """
+    timing, vibration = mill.config.timing, mill.config.drives.vibration
+    burst_rpm = ACCEL_SLACK_FACTOR * vibration.max_accel_rpm_s * timing.watchdog_timeout_s + ACCEL_SLACK_RPM
+    target = (LOW_RPM[0], LOW_RPM[1] + burst_rpm + 10.0)
+    assert target[1] < vibration.max_speed_rpm and mill.envelope.check(*target, None).ok, (
+        f"no raw jump inside the envelope: the node allows {burst_rpm:.1f} rpm at once on ω_v "
+        f"(max_accel_rpm_s = {vibration.max_accel_rpm_s}, watchdog_timeout_s = {timing.watchdog_timeout_s})"
+    )
+    return target
+
+
 @pytest.mark.parametrize(
-    ("case", "rotary_rpm", "vibration_rpm", "refusal"),
+    ("case", "refusal"),
     [
-        ("over_limit", 300.0, LOW_RPM[1], RefusalCode.ENVELOPE),  # limit 149.3 rpm at ω_v = 300
-        ("raw_jump", LOW_RPM[0] + 60.0, LOW_RPM[1], RefusalCode.ACCEL_LIMIT),  # inside, but a 60 rpm step
+        ("over_limit", RefusalCode.ENVELOPE),  # 300 rpm: the limit is 149.3 rpm at ω_v = 300
+        ("raw_jump", RefusalCode.ACCEL_LIMIT),  # inside, but a step larger than the drive may take
     ],
 )
 def test_rogue_senders_setpoint_refused_by_the_node(
-    bus_mill: Mill,
+    rogue_mill: Mill,
     transport: Transport,
     capsys: pytest.CaptureFixture[str],
     case: str,
-    rotary_rpm: float,
-    vibration_rpm: float,
     refusal: RefusalCode,
 ) -> None:
-    mill, probe = bus_mill, probe_of(bus_mill)
+    mill, probe = rogue_mill, probe_of(rogue_mill)
     mill.run_at(*LOW_RPM)
+    rotary_rpm, vibration_rpm = (300.0, LOW_RPM[1]) if case == "over_limit" else raw_jump_target(mill)
     rogue = Setpoints(rotary_rpm=rotary_rpm, vibration_rpm=vibration_rpm, furnace_c=25.0, heater_on=False)
 
     # The rogue copies the controller's alive counter, so its frame passes E2E and meets the node's own check.
@@ -397,11 +427,13 @@ def test_babbling_node_controller_stays_responsive_or_trips_with_a_named_cause(
     mill.run_at(*LOW_RPM)
     invalid_before = mill.status()["invalid_frames"]
 
-    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ)
+    # In the VM the babble is slowed by the measured slowdown: the same load relative to the machine (a node and
+    # a controller 25x slower than the host's cannot write, or read, 1000 frames/s; the host tier runs 1000 Hz).
+    t_babble = probe.inject(SimFaultCode.NODE_BABBLE, BABBLE_HZ / load_scale())
     deadline = time.monotonic() + mill.timeout(2.0)
     while time.monotonic() < deadline:  # the API keeps answering under the babble
         during = mill.status()
-        time.sleep(0.1)
+        time.sleep(0.1 * bound_scale())
     t_quiet = probe.inject(SimFaultCode.NODE_BABBLE, active=False)
     time.sleep(0.5)
     final = mill.status()

@@ -9,7 +9,6 @@ inside the hil tier's private network namespace (``tests/hil/in_netns``).
 from __future__ import annotations
 
 import contextlib
-import json
 import signal
 import time
 from pathlib import Path
@@ -19,10 +18,10 @@ import can
 import pytest
 
 from millctl.client import Client
-from millctl.config.loader import packaged_file
 from millctl.protocol import DriveTelemetry, FaultCode, NodeState, NodeStatus, ProtocolError, default_codec
 from millctl.records import read_records
 from tests.hil.conftest import _live_group_members
+from tests.hil.scenario_support import bound_scale, write_config
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -32,24 +31,6 @@ pytestmark = pytest.mark.hil
 STANDSTILL_RPM = 1.0
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    return json.dumps(value)
-
-
-def write_config(directory: Path, bus: dict[str, Any]) -> Path:
-    """The packaged config with this transport's ``[bus]`` and a ``[service]`` in ``directory``."""
-    text = packaged_file("mill.toml").read_text(encoding="utf-8")
-    head = text.partition("[bus]")[0]
-    service = {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")}
-    bus_lines = "\n".join(f"{key} = {_toml_value(value)}" for key, value in bus.items())
-    service_lines = "\n".join(f"{key} = {_toml_value(value)}" for key, value in service.items())
-    path = directory / "mill.toml"
-    path.write_text(f"{head}[bus]\n{bus_lines}\n\n[service]\n{service_lines}\n", encoding="utf-8")
-    return path
-
-
 def wait_for(condition: Any, timeout_s: float, what: str) -> None:
     """Poll ``condition()`` until true (a safety net, not a timing assertion)."""
     deadline = time.monotonic() + timeout_s
@@ -57,7 +38,7 @@ def wait_for(condition: Any, timeout_s: float, what: str) -> None:
         with contextlib.suppress(Exception):
             if condition():
                 return
-        time.sleep(0.05)
+        time.sleep(0.05 * bound_scale())  # in the VM a status request costs the service ~25x the host's CPU
     pytest.fail(f"timed out after {timeout_s:.0f} s waiting for {what}")
 
 
@@ -110,7 +91,7 @@ class Watcher:
 def test_sigkill_of_the_service_mid_run_the_node_stops_the_mill_and_records_survive(
     transport: Transport, spawn: Spawner, tmp_path: Path
 ) -> None:
-    config = write_config(tmp_path, transport.bus_config_fields())
+    config = write_config(tmp_path, transport)  # the scenarios' config: scaled inside the VM like theirs
     node = spawn(["python", "-m", "firmware_sim", "--config", str(config)])
     service = spawn(["python", "-m", "millctl", "--config", str(config), "serve"])
     watcher = Watcher(transport.open_bus())

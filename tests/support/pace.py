@@ -21,8 +21,8 @@ so a process that hangs still fails the test.
 
 from __future__ import annotations
 
-import math
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -124,25 +124,53 @@ def _workload() -> None:
 
 
 def calibration_s(repeats: int = 7, clock: str = "wall") -> float:
-    """The fastest of ``repeats`` runs of the workload (s), timed by ``clock``: "wall" or "cpu" (this process).
+    """The workload's time (s): the fastest of ``repeats`` runs by CPU time, or their median by wall time.
 
-    The host's reference is CPU time (what the host's load cannot inflate); the VM's measurement is wall
-    time, which is what its waits are made of.
+    ``clock="cpu"`` is the host's reference: this process's CPU time, the fastest run (what the host's
+    load cannot inflate). ``clock="wall"`` is the VM's measurement: wall time, which is what its waits
+    are made of, and the median run, so that the figure is the VM's typical speed on the host as it is
+    loaded now, not its best moment.
     """
+    if clock not in ("cpu", "wall"):
+        raise ValueError(f"the calibration clock must be 'cpu' or 'wall', got {clock!r}")
+    if repeats < 1:
+        raise ValueError(f"the calibration needs at least 1 run, got {repeats}")
     timer = time.process_time if clock == "cpu" else time.perf_counter
-    best = math.inf
+    runs = []
     for _ in range(repeats):
         start = timer()
         _workload()
-        best = min(best, timer() - start)
-    return best
+        runs.append(timer() - start)
+    return min(runs) if clock == "cpu" else statistics.median(runs)
 
 
-def slowdown_against(reference_s: float) -> float:
-    """This machine's speed now against a reference measurement elsewhere: ``calibration_s() / reference_s`` (≥ 1)."""
+def slowdown_against(reference_s: float, measured_s: float | None = None) -> float:
+    """How many times slower this machine runs than the reference: ``measured_s / reference_s``, at least 1.
+
+    ``measured_s`` defaults to :func:`calibration_s` (wall time, median) measured now.
+    """
     if not reference_s > 0:
         raise ValueError(f"the calibration reference must be a positive time in s, got {reference_s}")
-    return max(calibration_s() / reference_s, 1.0)
+    if measured_s is None:
+        measured_s = calibration_s()
+    return max(measured_s / reference_s, 1.0)
+
+
+REFERENCE_ENV = "MILLCTL_PACE_REFERENCE_S"
+"""The host's calibration reference (s of CPU), which ``tests/vm/run`` passes into the VM."""
+
+
+def slowdown_now() -> float:
+    """The slowdown against the host measured now (about 1 s in the VM), at least :func:`time_scale`.
+
+    For a load a scenario generates (a flood, a babble), sized to what the machine manages at that
+    moment: the VM slows down further when the host gets busier after the run measured its scale.
+    Without the host's reference (``$MILLCTL_PACE_REFERENCE_S``, set in the VM) it is :func:`time_scale`.
+    """
+    reference = os.environ.get(REFERENCE_ENV)
+    if not reference:
+        return time_scale()
+    return max(slowdown_against(float(reference)), time_scale())
 
 
 def main(argv: list[str]) -> int:
@@ -163,11 +191,13 @@ if __name__ == "__main__":
 
 __all__ = [
     "MAX_STRETCH",
+    "REFERENCE_ENV",
     "Deadline",
     "calibration_s",
     "cpu_share",
     "runnable_per_cpu",
     "slowdown_against",
+    "slowdown_now",
     "stretched",
     "time_scale",
 ]

@@ -23,6 +23,7 @@ from millctl.protocol import (
     ControllerState,
     Decoded,
     EStop,
+    EStopSource,
     FaultCode,
     FaultFlag,
     Heartbeat,
@@ -34,6 +35,7 @@ from millctl.protocol import (
     default_codec,
     e2e_crc,
 )
+from millctl.protocol.codec import INFORMATIONAL_TABLE
 
 CODEC = default_codec()
 
@@ -141,6 +143,21 @@ def test_estop_has_the_highest_priority_identifier() -> None:
     others = [CODEC.frame_id(kind) for kind in MESSAGE_TYPES if kind is not EStop]
     assert min(others) > ESTOP_ID
     assert len(set(others)) == len(others)
+
+
+def test_estop_source_has_a_value_table_and_it_is_informational() -> None:
+    """The DBC names the sources (EStopSource); an E-stop from a source it does not name is still an E-stop."""
+    signal = CODEC.database.get_message_by_name("EStop").get_signal_by_name("source")
+    assert signal.choices is not None and signal.dbc is not None
+    assert {int(k): str(v) for k, v in signal.choices.items()} == {s.value: s.name for s in EStopSource}
+    assert signal.dbc.attributes[INFORMATIONAL_TABLE].value == 1
+    for source in (*EStopSource, 7, 255):
+        decoded = CODEC.decode(CODEC.encode(EStop(source)))
+        assert decoded.message == EStop(int(source))
+    foreign = can.Message(arbitration_id=ESTOP_ID, data=bytes([200, 0, 0, 0, 0, 0, 0, 0]), is_extended_id=False)
+    assert CODEC.decode(foreign).message == EStop(200)  # a button wired by someone else: decoded as sent
+    with pytest.raises(SignalRangeError, match=r"EStop\.source = 256"):
+        CODEC.encode(EStop(256))  # the range still holds
 
 
 def test_every_periodic_message_has_a_cycle_time_and_heartbeat_is_20_hz() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import pytest
@@ -80,3 +81,59 @@ def test_a_bad_time_scale_is_refused_with_its_value(monkeypatch: pytest.MonkeyPa
     monkeypatch.setenv("MILLCTL_TIME_SCALE", bad)
     with pytest.raises(ValueError, match="MILLCTL_TIME_SCALE must be"):
         pace.time_scale()
+
+
+# --- calibration: the VM's slowdown against the host ---------------------------------------------------------------
+
+
+def test_the_slowdown_is_the_measured_time_over_the_reference() -> None:
+    assert pace.slowdown_against(0.002, measured_s=0.05) == pytest.approx(25.0)
+
+
+def test_a_machine_faster_than_the_reference_counts_as_no_slowdown() -> None:
+    assert pace.slowdown_against(0.004, measured_s=0.001) == 1.0  # never below 1: waits only ever stretch
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan")])
+def test_a_bad_reference_is_refused_with_its_value(bad: float) -> None:
+    with pytest.raises(ValueError, match="calibration reference must be a positive time"):
+        pace.slowdown_against(bad, measured_s=1.0)
+
+
+def test_the_host_reference_is_the_fastest_cpu_time_and_the_vm_figure_the_median_wall_time(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    runs = iter([0.0, 5.0, 5.0, 6.0, 6.0, 9.0])  # three runs: 5, 1 and 3 s on whichever clock is read
+    monkeypatch.setattr(pace, "_workload", lambda: None)
+    monkeypatch.setattr(time, "process_time", lambda: next(runs))
+    assert pace.calibration_s(repeats=3, clock="cpu") == 1.0
+    runs = iter([0.0, 5.0, 5.0, 6.0, 6.0, 9.0])
+    monkeypatch.setattr(time, "perf_counter", lambda: next(runs))
+    assert pace.calibration_s(repeats=3, clock="wall") == 3.0
+
+
+def test_an_unknown_calibration_clock_is_refused() -> None:
+    with pytest.raises(ValueError, match="'cpu' or 'wall', got 'tsc'"):
+        pace.calibration_s(clock="tsc")
+
+
+def test_the_command_line_prints_the_reference_and_the_scale(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.004 if clock == "cpu" else 0.1)
+    assert pace.main(["--reference"]) == 0
+    assert capsys.readouterr().out == "0.004000\n"
+    assert pace.main(["--scale", "0.004"]) == 0
+    assert capsys.readouterr().out == "25.00\n"
+    assert pace.main([]) == 2
+
+
+def test_the_load_scale_is_measured_now_against_the_hosts_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("MILLCTL_TIME_SCALE", "20")
+    monkeypatch.delenv(pace.REFERENCE_ENV, raising=False)
+    assert pace.slowdown_now() == 20.0  # no reference (the host): the run's scale
+    monkeypatch.setenv(pace.REFERENCE_ENV, "0.002")
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.09)
+    assert pace.slowdown_now() == pytest.approx(45.0)  # the host got busier since the run measured 20
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.01)
+    assert pace.slowdown_now() == 20.0  # never below the run's scale

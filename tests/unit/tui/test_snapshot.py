@@ -169,8 +169,12 @@ def test_set_dialog_with_ramp_rates_and_the_linear_path(snap_compare: Any, utc: 
         modal.query_one("#rot_rate", Input).value = "12.5"
         modal.query_one("#vib_rate", Input).value = "60"
         modal.query_one("#linear", Checkbox).value = True
-        for _ in range(20):
+        verdict = modal.query_one("#verdict", Static)
+        for _ in range(500):  # until the check of the last field's change has answered
             await pilot.pause(0.02)
+            if "margin" in str(verdict.render()) and not modal.workers:
+                break
+        assert "inside the envelope" in str(verdict.render())
 
     assert snap_compare(app, terminal_size=SIZE, run_before=run)
 
