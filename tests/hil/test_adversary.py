@@ -10,7 +10,7 @@ and prints its reaction time as ``HIL-TIMING {json}`` (docs/safety.md).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -75,9 +75,8 @@ def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple
             adversary.close()
 
 
-def wait_status(mill: Mill, probe: Probe, where: object, after: float, what: str) -> Seen:
-    assert callable(where)
-    return probe.wait_first(where, after, mill.timeout(3.0), what)  # type: ignore[arg-type]
+def wait_status(mill: Mill, probe: Probe, where: Callable[[Seen], bool], after: float, what: str) -> Seen:
+    return probe.wait_first(where, after, mill.timeout(3.0), what)
 
 
 def processes_alive(mill: Mill) -> None:
