@@ -159,7 +159,9 @@ class Adversary:
             start, credit = time.monotonic(), 0.0
             while not sender.halted:
                 due = rate_hz * (time.monotonic() - start) - sender.sent
-                credit = min(due, rate_hz * 0.1)  # never more than 0.1 s of frames at once after a stall
+                # never more than 0.1 s of frames at once after a stall, and at least one when one is due (below
+                # 10 frames/s, as the VM's slowed flood can be, 0.1 s of frames rounded down to none: nothing was sent)
+                credit = min(due, max(rate_hz * 0.1, 1.0))
                 with self._lock:
                     for _ in range(int(credit)):
                         try:
