@@ -55,6 +55,7 @@ def test_quit_while_running_ends_without_a_traceback(fault_service: Service) -> 
                    timeout=stretched(60.0))
     with fault_service.client() as client:
         wait_for(lambda: client.status().state is ControllerState.RUNNING, what="RUNNING")
+    done = 0  # the TUI's pid once it has exited (0 while it runs): the cleanup below kills it otherwise
     pid, fd = pty.fork()
     if pid == 0:  # the child: the TUI on a 120 × 40 terminal
         os.environ["TERM"] = "xterm-256color"
@@ -66,7 +67,7 @@ def test_quit_while_running_ends_without_a_traceback(fault_service: Service) -> 
         _read_until(fd, "Quit?", 10.0)
         os.write(fd, b"y")
         after = b""
-        deadline, done = Deadline(30.0), 0
+        deadline = Deadline(30.0)
         while done == 0 and not deadline.expired():
             after += _read(fd, 0.5)
             done, status = os.waitpid(pid, os.WNOHANG)
