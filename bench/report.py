@@ -434,7 +434,7 @@ def _safety(st: dict[str, Any]) -> list[str]:
             out += [f"- {k + 1}: `{f}`" for k, f in failures]
             out.append("")
     bl = st["bus_load"]
-    c = bl["computed"]
+    c = bl["computed"].get("result", bl["computed"])  # results saved before the fix kept the CLI's JSON envelope
     out += ["### Bus load", ""]
     if "measured" not in bl:
         out += [

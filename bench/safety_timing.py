@@ -95,11 +95,12 @@ def hil_trials(
 
 def bus_load(window_s: float) -> dict[str, Any]:
     """Measured (bench.capture in the namespace) against computed (``millctl bus load --json``)."""
-    computed = json.loads(
+    envelope = json.loads(
         subprocess.run(
             [sys.executable, "-m", "millctl", "bus", "load", "--json"], cwd=ROOT, capture_output=True, check=True
         ).stdout
     )
+    computed = envelope.get("result", envelope)  # the CLI's JSON envelope ({"schema", "command", "ok", "result"})
     out: dict[str, Any] = {"computed": computed}
     if reason := _netns_ok():
         out["skipped"] = reason

@@ -31,10 +31,11 @@ import contextlib
 import functools
 import os
 import socket
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable, Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Generic, ParamSpec, TypeVar, overload
+from urllib.parse import quote
 
 import httpx
 from httpx_sse import ServerSentEvent, aconnect_sse, connect_sse
@@ -48,11 +49,17 @@ from millctl.api import (
     EnvelopeOut,
     EventOut,
     EventsOut,
+    FaultsOut,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
+    RecipeResumeOut,
     ServiceOut,
+    SimFaultName,
     StatusOut,
     StreamKind,
+    UnfinishedRunOut,
+    UnfinishedRunsOut,
 )
 from millctl.client_errors import (
     AccessDenied,
@@ -266,6 +273,22 @@ def _recipe_run_text(name: str, text: str) -> Request:
     return _post("/v1/recipe/run", {"name": name, "text": text})
 
 
+def _recipe_check(path: str | os.PathLike[str]) -> Request:
+    """Pre-flight a recipe file against the service's envelope: read here, sent by content; nothing starts."""
+    name, text = read_recipe_text(path)
+    return _post("/v1/recipe/check", {"name": name, "text": text})
+
+
+def _faults() -> Request:
+    """The faults injected into the simulated node (GET /v1/sim/faults; serve --fault-injection only)."""
+    return _get("/v1/sim/faults")
+
+
+def _inject_fault(fault: SimFaultName | str, active: bool = True, param: float = 0.0) -> Request:
+    """Inject (or clear) a simulated node fault for an operator drill (serve --fault-injection only)."""
+    return _post("/v1/sim/faults", {"fault": str(fault), "active": active, "param": param})
+
+
 def _recipe_pause(now: bool = False) -> Request:
     """Pause the run at the next step boundary, or now."""
     return _post("/v1/recipe/pause", {"now": now})
@@ -284,6 +307,21 @@ def _recipe_abort() -> Request:
 def _recipe() -> Request:
     """Progress of the current or last run (GET /v1/recipe)."""
     return _get("/v1/recipe")
+
+
+def _recipe_unfinished() -> Request:
+    """The interrupted runs in the service's records (GET /v1/recipe/unfinished)."""
+    return _get("/v1/recipe/unfinished")
+
+
+def _recipe_resume_run(run_id: str, *, confirm: bool, text: str | None = None) -> Request:
+    """Check (``confirm`` false) or resume an interrupted run; ``text``: the recipe, if the record keeps none."""
+    return _post(f"/v1/recipe/unfinished/{quote(run_id, safe='')}/resume", {"confirm": confirm, "text": text})
+
+
+def _recipe_close_run(run_id: str) -> Request:
+    """Close an interrupted run for good: its record ends ABORTED (needs control)."""
+    return _post(f"/v1/recipe/unfinished/{quote(run_id, safe='')}/abort")
 
 
 class _Base:
@@ -395,6 +433,12 @@ class Operations(_Base):
     recipe_resume = Operation(RecipeOut, _recipe_resume)
     recipe_abort = Operation(RecipeOut, _recipe_abort)
     recipe = Operation(RecipeOut, _recipe)
+    recipe_unfinished = Operation(UnfinishedRunsOut, _recipe_unfinished)
+    recipe_resume_run = Operation(RecipeResumeOut, _recipe_resume_run)
+    recipe_close_run = Operation(UnfinishedRunOut, _recipe_close_run)
+    recipe_check = Operation(RecipeCheckOut, _recipe_check)
+    faults = Operation(FaultsOut, _faults)
+    inject_fault = Operation(FaultsOut, _inject_fault)
 
 
 class Client(Operations):
@@ -433,7 +477,7 @@ class Client(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 self.release_control()
 
-    def stream(self, count: int | None = None) -> Iterator[StreamItem]:
+    def stream(self, count: int | None = None) -> Generator[StreamItem, None, None]:
         """Live :class:`StatusOut` and :class:`EventOut` items (GET /v1/stream) until closed or ``count``.
 
         Resumes after :attr:`last_event_id` when set (a reconnection misses no event).
@@ -487,7 +531,7 @@ class AsyncClient(Operations):
             with contextlib.suppress(BusError, InterlockError):
                 await self.release_control()
 
-    async def stream(self, count: int | None = None) -> AsyncIterator[StreamItem]:
+    async def stream(self, count: int | None = None) -> AsyncGenerator[StreamItem, None]:
         """Live status and event items, as :meth:`Client.stream` (resuming after :attr:`last_event_id`)."""
         try:
             async with aconnect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:

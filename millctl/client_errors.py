@@ -7,6 +7,7 @@ HTTP   API code                                exception                exit
 409    wrong_state                             :class:`ServiceRefused`    2
 423    control_held                            :class:`ControlHeld`       2
 422    invalid_request, invalid_input          :class:`RequestInvalid`    1
+404    run_not_found                           :class:`RequestInvalid`    1
 401    unauthorized                            :class:`AccessDenied`      3
 503    node_unreachable                        :class:`NodeUnavailable`   3
 —      (nothing answers)                       :class:`ServiceUnavailable` 3
@@ -94,7 +95,7 @@ def raise_for_error(response: httpx.Response, where: str) -> None:
         raise ControlHeld(message, error)
     if status == 409:
         raise ServiceRefused(message, error)
-    if status == 422:
+    if status == 422 or (status == 404 and error.code is ErrorCode.RUN_NOT_FOUND):
         raise RequestInvalid(message, error.field)
     if status == 401:
         raise AccessDenied(f"{where}: {message}")

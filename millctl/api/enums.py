@@ -52,6 +52,9 @@ class RunState(enum.StrEnum):
     DONE = "DONE"
     ABORTED = "ABORTED"
     FAILED = "FAILED"
+    INTERRUPTED = "INTERRUPTED"
+    """The service stopped (or died) under the run: it is unfinished, and ``millctl recipe resume RUN`` continues it
+    (docs/operations.md#resume)."""
 
     @property
     def final(self) -> bool:
@@ -87,6 +90,27 @@ class EventKind(enum.StrEnum):
     """Records could not be written (a full or failing disk), or can be again."""
     BUS = "bus"
     """The CAN controller's condition changed: error-warning, error-passive, bus-off, back to error-active."""
+    DRILL = "drill"
+    """An instructor injected or cleared a simulated node fault (``millctl serve --fault-injection``)."""
+
+
+class SimFaultName(enum.StrEnum):
+    """The simulated node's injectable faults (``firmware_sim/faults.py``; docs/operations.md#fault-injection).
+
+    The names of :class:`millctl.protocol.messages.SimFaultCode`, on the wire of the API as strings.
+    """
+
+    CLEAR = "CLEAR"
+    """Clear every injected fault (latched node faults stay until a reset)."""
+    VIB_STALL = "VIB_STALL"
+    ROTARY_RUNAWAY = "ROTARY_RUNAWAY"
+    SENSOR_STUCK = "SENSOR_STUCK"
+    SENSOR_NOISY = "SENSOR_NOISY"
+    HEATER_FAIL = "HEATER_FAIL"
+    NODE_SILENT = "NODE_SILENT"
+    NODE_BABBLE = "NODE_BABBLE"
+    TX_LOSS = "TX_LOSS"
+    TX_CORRUPT = "TX_CORRUPT"
 
 
 class ErrorCode(enum.StrEnum):
@@ -103,6 +127,7 @@ class ErrorCode(enum.StrEnum):
     BUSY = "busy"
     BODY_TOO_LARGE = "body_too_large"
     BAD_REQUEST = "bad_request"
+    RUN_NOT_FOUND = "run_not_found"
     HTTP_ERROR = "http_error"
 
 

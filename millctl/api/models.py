@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState
+from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, SimFaultName
 
 
 class Strict(BaseModel):
@@ -289,8 +289,29 @@ class ServiceOut(Strict):
     socket_path: str = Field(description="the Unix socket the API is served on")
     records_dir: str
     bus_log: str = Field(description="this session's bus log file")
+    fault_injection: bool = Field(default=False, description="an instructor may inject the simulated node's faults "
+                                  "(serve --fault-injection; only on a simulated mill): /v1/sim/faults exists")
     warnings: list[str] = Field(default_factory=list, description="what the operator must know about the service "
-                                "itself, e.g. records that cannot be written (the mill is controlled as before)")
+                                "itself, e.g. records that cannot be written (the mill is controlled as before), "
+                                "or an interrupted run waiting to be resumed")
+    unfinished_runs: list[str] = Field(default_factory=list, description="ids of the interrupted runs in the records "
+                                       "(`millctl recipe list`, GET /v1/recipe/unfinished)")
+
+
+# ---------------------------------------------------------------- fault drills (serve --fault-injection)
+class FaultRequest(Strict):
+    """Inject (or clear) one fault of the simulated node; ``CLEAR`` clears them all."""
+
+    fault: SimFaultName = Field(description="the fault (docs/operations.md#fault-injection)")
+    active: bool = Field(default=True, description="true injects it, false clears it")
+    param: float = Field(default=0.0, allow_inf_nan=False, ge=-1e6, le=1e6,
+                         description="its parameter: rpm, a probability 0–1, Hz or a heater mode, by fault")
+
+
+class FaultsOut(Strict):
+    """The faults injected into the simulated node now, with their parameter."""
+
+    active: dict[SimFaultName, float] = Field(description="injected fault → its parameter")
 
 
 # ---------------------------------------------------------------- recipes
@@ -303,6 +324,21 @@ class RecipeRunRequest(Strict):
     name: str = Field(min_length=1, max_length=255, pattern=r"^[^\x00-\x1f\x7f]+$",
                       description="where the recipe came from, for the run record (no control characters)")
     text: str = Field(min_length=1, max_length=512 * 1024, description="the recipe file's TOML text")
+
+
+class RecipeCheckOut(Strict):
+    """A recipe's pre-flight against the service's own envelope: nothing is started, no control needed."""
+
+    source: str = Field(description="the name the recipe was sent under (its file name)")
+    recipe: str | None = Field(description="the recipe's own name; null when its text is not a valid recipe")
+    ok: bool = Field(description="true when it is a valid recipe whose whole plan stays inside the envelope")
+    steps: int = Field(description="number of steps (0 when invalid)")
+    planned_s: float | None = Field(description="planned time with the final stop (s); open-ended steps count 0")
+    open_ended: bool = Field(description="true when some step waits for the furnace or the operator")
+    dose_kj_g: float | None = Field(description="expected specific energy dose (kJ per g of powder)")
+    law: str = Field(description="the limit law it was checked under")
+    problems: list[str] = Field(description="why it would be refused: every envelope violation (step, time, "
+                                "value, limit) or every invalid field; empty when ok")
 
 
 class RecipePauseRequest(Strict):
@@ -326,6 +362,70 @@ class RecipeProgress(Strict):
     step_elapsed_s: float | None = Field(description="time spent in the current step (s)")
     remaining_s: float | None = Field(description="planned time left, including the final stop (s)")
     record: str = Field(description="the run record (JSON lines)")
+    gap_s: float = Field(default=0.0, description="time the run stood interrupted (service stopped or died), "
+                         "not counted in elapsed_s (s)")
+    resumed: bool = Field(default=False, description="true for a run resumed after an interruption")
+
+
+class RunGapOut(Strict):
+    """A time a run did not run: from its last record before the gap to its resume (Unix times)."""
+
+    start_unix: float = Field(description="the last record before the gap (s)")
+    end_unix: float | None = Field(description="the resume (s); null while the run is still interrupted")
+    gap_s: float | None = Field(description="the gap's length (s); null while open")
+    step: int = Field(description="the step the run was in, from 1")
+    reason: str = Field(description="why the run stopped")
+
+
+class UnfinishedRunOut(Strict):
+    """A run its record shows unfinished (no end) and no service runs: it can be resumed or closed."""
+
+    run_id: str
+    recipe: str = Field(description="the recipe's name")
+    recipe_file: str
+    recipe_sha256: str = Field(description="hash of the recipe text the run started with; a resume needs the same")
+    config_sha256: str = Field(description="hash of the configuration the run started under")
+    state: RunState = Field(description="INTERRUPTED")
+    step: int = Field(description="the step it was in, from 1 (steps + 1: only the final stop was left)")
+    steps: int
+    kind: str | None = Field(description="kind of that step; null when it had not started")
+    step_elapsed_s: float = Field(description="time of that step done at its setpoints (s); a hold resumes with it")
+    step_dose_kj_g: float = Field(description="dose of that step so far (kJ/g); a dose hold resumes with it")
+    elapsed_s: float = Field(description="time the run was under way, gaps excluded (s)")
+    started_unix: float
+    interrupted_unix: float = Field(description="the last record before the gap (s)")
+    reason: str = Field(description="why it stopped: the service's stop, or a crash, kill or power loss")
+    gaps: list[RunGapOut] = Field(description="the run's gaps so far, the open one last")
+    record: str = Field(description="the run record (JSON lines)")
+    recipe_in_record: bool = Field(description="the record keeps the recipe's text (else send it to resume)")
+
+
+class UnfinishedRunsOut(Strict):
+    """Every interrupted run in the service's records, oldest first."""
+
+    runs: list[UnfinishedRunOut]
+
+
+class RecipeResumeRequest(Strict):
+    """Resume an interrupted run: ``confirm`` false only checks (nothing moves); true starts it after the check."""
+
+    confirm: bool = Field(description="the operator's confirmation: true resumes, false only shows the check")
+    text: str | None = Field(default=None, min_length=1, max_length=512 * 1024,
+                             description="the recipe's TOML text; must hash to the run's recipe_sha256 "
+                             "(default: the text kept in the run record)")
+
+
+class ResumeCheckOut(Strict):
+    """The pre-flight of a resume, from the mill's state now."""
+
+    ok: bool = Field(description="nothing stops the resume")
+    problems: list[str] = Field(description="what stops it, each with the value and what to do")
+    restore: str = Field(description="what happens first, in words: from the measured values to the setpoints")
+    restore_s: float = Field(description="expected time of the restore ramps (s)")
+    controller_state: ControllerState
+    measured_rotary_rpm: float | None
+    measured_vibration_rpm: float | None
+    furnace_temp_c: float | None
 
 
 class RecipeOut(Strict):
@@ -333,6 +433,15 @@ class RecipeOut(Strict):
 
     active: bool
     progress: RecipeProgress | None
+
+
+class RecipeResumeOut(Strict):
+    """The run, the check and, once confirmed and started, its progress."""
+
+    run: UnfinishedRunOut
+    check: ResumeCheckOut
+    started: bool = Field(description="true once the run continues")
+    recipe: RecipeOut | None = Field(description="the run's progress once started")
 
 
 __all__ = [
@@ -346,18 +455,27 @@ __all__ = [
     "ErrorBody",
     "EventOut",
     "EventsOut",
+    "FaultRequest",
+    "FaultsOut",
     "FurnaceRequest",
     "LeaseOut",
     "LinkOut",
+    "RecipeCheckOut",
     "RecipeOut",
     "RecipePauseRequest",
     "RecipeProgress",
+    "RecipeResumeOut",
+    "RecipeResumeRequest",
     "RecipeRunRequest",
     "Refusal",
     "RegimeOut",
+    "ResumeCheckOut",
+    "RunGapOut",
     "ServiceOut",
     "SetpointsRequest",
     "StatusOut",
     "Strict",
     "TakeRequest",
+    "UnfinishedRunOut",
+    "UnfinishedRunsOut",
 ]

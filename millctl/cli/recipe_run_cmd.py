@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from millctl.api import ControllerState, RecipeProgress, RunState, StatusOut
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
+from millctl.cli.recipe_resume_cmd import register_resume
 from millctl.errors import BusError, ExitCode
 
 if TYPE_CHECKING:
@@ -52,8 +53,7 @@ def register_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     pause = sub.add_parser("pause", parents=[socket_opt], help="pause the running recipe at the next step boundary")
     pause.add_argument("--now", action="store_true", help="pause now, holding the current setpoints")
     pause.set_defaults(handler=_action, action="pause")
-    for name, text in (("resume", "resume a paused or held run"), ("abort", "abort the run: controlled stop")):
-        sub.add_parser(name, parents=[socket_opt], help=text).set_defaults(handler=_action, action=name)
+    register_resume(sub, socket_opt, _action)
     status = sub.add_parser("status", parents=[socket_opt], help="progress of the current or last run")
     status.add_argument("--json", action="store_true", help="machine-readable output")
     status.set_defaults(handler=_status)
@@ -166,14 +166,14 @@ def _run(args: argparse.Namespace) -> int:
                 f"run {started.run_id} started; follow with `millctl recipe status`", markup=False
             )
             return int(ExitCode.OK)
-        final = _follow(client)
+        final = follow(client)
     finally:
         with contextlib.suppress(BusError, Exception):
             client.release_control()
         client.close()
         if embedded is not None:
             embedded.stop()
-    return _summary(args, final)
+    return summary(args, final)
 
 
 def _start_simulation(args: argparse.Namespace, socket_path: str, err: Any) -> _EmbeddedService:
@@ -214,7 +214,7 @@ class _Interrupts:
         self.count += 1
 
 
-def _follow(client: Client) -> RecipeProgress:
+def follow(client: Client) -> RecipeProgress:
     """Show progress until the run ends; Ctrl+C once pauses now, twice aborts."""
     from rich.live import Live
 
@@ -240,7 +240,7 @@ def _follow(client: Client) -> RecipeProgress:
             if progress is None:
                 raise BusError("the service has no recipe run: was it restarted?")
             live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
-            if progress.state.final:
+            if progress.state.final or progress.state is RunState.INTERRUPTED:
                 return progress
             if time.monotonic() - last_renew > LEASE_RENEW_S:
                 client.take_control()
@@ -313,7 +313,8 @@ def _line(progress: RecipeProgress | None) -> str:
     )
 
 
-def _summary(args: argparse.Namespace, final: RecipeProgress) -> int:
+def summary(args: argparse.Namespace, final: RecipeProgress) -> int:
+    """Print the run's end (text or --json); exit 0 for DONE, else 2."""
     ok = final.state is RunState.DONE
     if args.json:
         error = None if ok else {"code": f"run_{final.state.lower()}", "exit_code": int(ExitCode.INTERLOCK),
@@ -324,7 +325,8 @@ def _summary(args: argparse.Namespace, final: RecipeProgress) -> int:
         out.print(f"recipe {final.recipe}: {final.state}", markup=False)
         out.print(f"  run id   {final.run_id}", markup=False)
         out.print(f"  steps    {final.step}/{final.steps}", markup=False)
-        out.print(f"  elapsed  {_hms(final.elapsed_s)}", markup=False)
+        out.print(f"  elapsed  {_hms(final.elapsed_s)}"
+                  + (f" (and {hms(final.gap_s)} interrupted)" if final.gap_s else ""), markup=False)
         if final.reason:
             out.print(f"  reason   {final.reason}", markup=False)
         out.print(f"  record   {final.record}", markup=False)

@@ -36,6 +36,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="serve a simulated mill (virtual bus, embedded node) whatever bus the config names; "
              "its records go to <records_dir>-sim",
     )
+    parser.add_argument(
+        "--fault-injection", action="store_true",
+        help="operator drills: let an instructor inject the simulated node's faults (TUI key f, POST "
+             "/v1/sim/faults); refused (exit 2) unless the node is the embedded simulation (--sim or the "
+             "virtual bus). See docs/operations.md#fault-drills",
+    )
     parser.set_defaults(handler=_serve)
 
 
@@ -66,13 +72,14 @@ def _serve(args: argparse.Namespace) -> int:
 
     def ready(path: Path, described: ServiceOut) -> None:
         tcp = f", TCP 127.0.0.1:{service.tcp_port} (token)" if service.tcp_port else ""
+        drill = "; FAULT INJECTION on (operator drills)" if described.fault_injection else ""
         console.print(
-            f"millctl serve: {describe_mill(described)}{tcp}, records {described.records_dir}; "
+            f"millctl serve: {describe_mill(described)}{tcp}, records {described.records_dir}{drill}; "
             "Ctrl+C stops the mill and exits",
             markup=False, highlight=False,
         )
 
-    code = serve(loaded, args.socket, on_ready=ready)
+    code = serve(loaded, args.socket, on_ready=ready, fault_injection=args.fault_injection)
     console.print(f"millctl serve: stopped (exit {code})", markup=False)
     return code
 

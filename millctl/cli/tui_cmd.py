@@ -24,6 +24,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--socket", metavar="PATH", help="service socket (default: service.socket_path of the config)")
     parser.add_argument("--sim", action="store_true",
                         help="start the embedded default service with its simulated node on a private socket")
+    parser.add_argument("--fault-injection", action="store_true",
+                        help="with --sim: the instructor may inject the simulated node's faults (key f) for "
+                             "operator drills; a running service gets this from `millctl serve --fault-injection`")
     parser.set_defaults(handler=_tui)
 
 
@@ -31,6 +34,11 @@ def _tui(args: argparse.Namespace) -> int:
     from millctl.tui import MillApp, SimService
 
     if not args.sim:
+        if args.fault_injection:
+            console = stderr_console()
+            console.print("millctl tui: --fault-injection goes with --sim; a running service is started with "
+                          "`millctl serve --fault-injection`", markup=False)
+            return int(ExitCode.INVALID_INPUT)
         MillApp(args.socket, config=args.config).run()
         return int(ExitCode.OK)
     console = stderr_console()
@@ -38,7 +46,7 @@ def _tui(args: argparse.Namespace) -> int:
         console.print("millctl tui: --sim uses its own private socket; drop --socket", markup=False)
         return int(ExitCode.INVALID_INPUT)
     console.print("millctl tui: starting the simulated service and node…", markup=False)
-    with SimService(args.config) as sim:
+    with SimService(args.config, fault_injection=args.fault_injection) as sim:
         app = MillApp(sim.socket_path, sim=True)
         previous = signal.signal(signal.SIGHUP, lambda signum, frame: app.exit())  # terminal gone: leave, stop sim
         try:

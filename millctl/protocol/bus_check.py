@@ -114,6 +114,16 @@ def link_problems(link: LinkInfo, bus: Bus) -> list[str]:
     return problems
 
 
+def startup_link_problems(bus_config: Bus) -> list[str]:
+    """For a socketcan bus, what is wrong with its link (bitrate, state) as the service starts; else nothing."""
+    if bus_config.interface != "socketcan":
+        return []
+    link = read_link(bus_config.channel)
+    if isinstance(link, str):
+        return []  # not readable (no iproute2, a restricted sandbox): `millctl bus check` says why
+    return link_problems(link, bus_config)
+
+
 @dataclass
 class BusCheckReport:
     """What ``millctl bus check`` found."""
@@ -189,4 +199,12 @@ def check_bus(bus_config: Bus, bus: can.BusABC, codec: Codec, listen_s: float) -
     return report
 
 
-__all__ = ["BusCheckReport", "LinkInfo", "check_bus", "link_problems", "parse_link", "read_link"]
+__all__ = [
+    "BusCheckReport",
+    "LinkInfo",
+    "check_bus",
+    "link_problems",
+    "parse_link",
+    "read_link",
+    "startup_link_problems",
+]

@@ -6,7 +6,10 @@ against its signal's range in the DBC (refusing, never clamping, with a
 alive counter and CRC of E2E-protected messages. ``Codec.decode`` turns any
 frame into a :class:`Decoded` or raises :class:`ProtocolError`, never any
 other exception: unknown or extended identifier, remote/error/FD frame, a
-length other than 8, a value outside its DBC range or not in its value table.
+length other than 8, a value outside its DBC range or not in its value table
+(unless the table is marked informational with the signal attribute
+``ValueTableInformational``, as ``EStop.source``'s is: an E-stop is valid
+whoever pressed it).
 
 A frame whose CRC does not match decodes to ``Decoded(message=None,
 crc_ok=False)``: its data are never handed out, but its receiver still
@@ -121,7 +124,7 @@ class Codec:
         for item in dataclasses.fields(kind):
             signal = dbc.get_signal_by_name(item.name)
             convert, integer = _converter(hints[item.name])
-            choices = frozenset(int(key) for key in signal.choices) if signal.choices else None
+            choices = None if _informational(signal) else frozenset(int(key) for key in signal.choices or ()) or None
             if signal.minimum is None or signal.maximum is None:
                 raise ProtocolError(f"{self.path}: {kind.__name__}.{item.name} has no range")
             low, high = float(signal.minimum), float(signal.maximum)
@@ -232,6 +235,17 @@ class Codec:
         return Decoded(spec.kind, spec.kind(**values), counter, True, frame_id, timestamp)
 
 
+INFORMATIONAL_TABLE = "ValueTableInformational"
+"""Signal attribute: 1 when the signal's value table only names values (EStop.source), 0 (default) when it
+is the set of valid values, checked on encode and decode."""
+
+
+def _informational(signal: Any) -> bool:
+    """True when the signal's value table is informational: any value in its range is valid."""
+    attribute = signal.dbc.attributes.get(INFORMATIONAL_TABLE) if signal.dbc else None
+    return attribute is not None and bool(attribute.value)
+
+
 def _checked(spec: _Spec, item: _Field, value: Any) -> int | float:
     """The wire value of one field, refusing what the signal cannot carry."""
 
@@ -265,4 +279,4 @@ def default_codec() -> Codec:
     return Codec()
 
 
-__all__ = ["DBC_NAME", "Codec", "Decoded", "default_codec"]
+__all__ = ["DBC_NAME", "INFORMATIONAL_TABLE", "Codec", "Decoded", "default_codec"]

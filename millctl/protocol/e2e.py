@@ -225,10 +225,14 @@ class E2EReceiver:
         self.last_counter = None
 
     def clear_scores(self) -> None:
-        """Clear both scores, keeping the counter (the node's accepted RESET)."""
+        """Clear both scores, keeping the counter (the node's accepted RESET).
+
+        The run of fresh frames toward the next decay needs no clearing: it
+        counts only while the sequence score is above 0, and the sequence
+        error that raises it again restarts the run.
+        """
         self.score = 0
         self.sequence_score = 0
-        self._fresh_run = 0
 
 
 __all__ = [

@@ -24,7 +24,7 @@ import math
 class SlewBudget:
     """The allowance (in the setpoint's unit) of one axis: refills at ``rate_per_s``, holds at most ``burst``."""
 
-    def __init__(self, rate_per_s: float, burst: float, now_s: float = 0.0) -> None:
+    def __init__(self, rate_per_s: float, burst: float) -> None:
         if not (math.isfinite(rate_per_s) and rate_per_s > 0.0):
             raise ValueError(
                 f"slew rate {rate_per_s!r}/s: must be finite and > 0 (docs/operations.md#node-side-checks)"
@@ -34,7 +34,8 @@ class SlewBudget:
         self.rate_per_s = rate_per_s
         self.burst = burst
         self._left = burst
-        self._at_s = now_s
+        self._at_s = 0.0
+        """When ``_left`` was last reckoned (s); any start time will do while the allowance is full."""
 
     def available(self, now_s: float) -> float:
         """The largest step allowed at ``now_s``: what was left, refilled since, at most ``burst``."""

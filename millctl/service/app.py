@@ -14,7 +14,7 @@ import time
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
-from fastapi import Body, FastAPI, Header, Query
+from fastapi import Body, FastAPI, Header, Path, Query
 from sse_starlette import EventSourceResponse, ServerSentEvent
 from starlette.concurrency import run_in_threadpool
 
@@ -26,26 +26,37 @@ from millctl.api import (
     ControllerState,
     ControlOut,
     EnvelopeOut,
+    ErrorBody,
     EventKind,
     EventsOut,
     FurnaceRequest,
     LeaseOut,
+    RecipeCheckOut,
     RecipeOut,
     RecipePauseRequest,
     RecipeProgress,
+    RecipeResumeOut,
+    RecipeResumeRequest,
     RecipeRunRequest,
+    RunState,
     ServiceOut,
     SetpointsRequest,
     StatusOut,
     StreamKind,
     TakeRequest,
+    UnfinishedRunOut,
+    UnfinishedRunsOut,
 )
 from millctl.controller import Controller
+from millctl.recipes.history import RUN_ID_PATTERN, RunLock, repair_tail
 from millctl.safety import InterlockRefused
 from millctl.service.envelope_view import envelope_out
 from millctl.service.errors import COMMAND_RESPONSES, READ_RESPONSES, install_error_handlers, refusal_list
+from millctl.service.faults import add_fault_routes
+from millctl.service.headers import ClientName, LeaseId, client_source
 from millctl.service.journal import finite
 from millctl.service.limits import BodyLimit
+from millctl.service.recipe import unfinished_out
 from millctl.service.runtime import ServiceRuntime
 
 STATUS_PERIOD_S = 0.25
@@ -66,14 +77,7 @@ SETTLES_IN: dict[str, frozenset[ControllerState]] = {
 }
 """The states a command leads to once the node has answered (a trip ends the wait too)."""
 
-ClientName = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_.@:+-]{1,64}$", description="the client's name, recorded as the source 'api:<name>'"),
-]
-LeaseId = Annotated[
-    str | None,
-    Header(pattern=r"^[A-Za-z0-9_-]{1,64}$", description="the lease id from POST /v1/control/take"),
-]
+RunId = Annotated[str, Path(pattern=RUN_ID_PATTERN, description="the run's id, e.g. 20260101T120000Z-1a2b3c")]
 
 
 def create_app(runtime: ServiceRuntime) -> FastAPI:
@@ -88,8 +92,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=runtime.config.service.max_request_bytes)
     rt = runtime
 
-    def source(name: str | None) -> str:
-        return f"api:{name or 'anonymous'}"
+    if rt.fault_injection:
+        add_fault_routes(app, rt)
 
     def command(lease: str | None, what: str, action: Any, *, idle: bool = True, settles: str = "") -> CommandOut:
         """Check the lease, run ``action(controller, source)`` under the lock, and answer with the state it led to.
@@ -178,7 +182,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         body: Annotated[TakeRequest | None, Body()] = None,
     ) -> LeaseOut:
         """Take control (or renew it); ``force`` takes over an expired lease, never a live one."""
-        holder = source(x_millctl_client)
+        holder = client_source(x_millctl_client)
         lease, taken_from = rt.leases.take(holder, lease_id=x_millctl_lease, force=bool(body and body.force))
         if x_millctl_lease != lease.lease_id:  # a new lease, not a renewal
             note = f" (took over the expired lease of {taken_from})" if taken_from else ""
@@ -222,7 +226,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def estop(x_millctl_client: ClientName = None) -> CommandOut:
         """Emergency stop: needs no lease and is always accepted."""
-        who = source(x_millctl_client)
+        who = client_source(x_millctl_client)
 
         def act(c: Controller) -> CommandOut:
             rt.recipe.abort_if_active(who)
@@ -267,12 +271,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
     def recipe() -> RecipeOut:
         """Progress of the current (or last) recipe run."""
-        def read(c: Controller) -> RecipeOut:
-            progress = rt.recipe.progress()
-            shown = RecipeProgress.model_validate(finite(progress)) if progress is not None else None
-            return RecipeOut(active=rt.recipe.active, progress=shown)
-
-        return rt.call(read, needs_node=False)
+        return rt.call(lambda c: rt.recipe.recipe_out(), needs_node=False)
 
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:
@@ -282,7 +281,69 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         """
         rt.leases.check(x_millctl_lease)
         loaded, plan = rt.recipe.prepare(body.name, body.text, rt.config)  # in this request's thread, not the loop
-        return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who))
+        run_id, lock = rt.recipe.lock_new_run()  # its record's lock: a live run is never taken for an interrupted one
+        try:
+            return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who, run_id=run_id,
+                                                                             lock=lock, text=body.text))
+        except BaseException:
+            lock.release(remove_if_empty=True)
+            raise
+
+    @app.get("/v1/recipe/unfinished", response_model=UnfinishedRunsOut, responses=READ_RESPONSES, tags=["recipe"])
+    def recipe_unfinished() -> UnfinishedRunsOut:
+        """The interrupted runs in the records (the service stopped or died under them), oldest first."""
+        return UnfinishedRunsOut(runs=[unfinished_out(h) for h in rt.recipe.unfinished()])
+
+    @app.post("/v1/recipe/unfinished/{run_id}/resume", response_model=RecipeResumeOut,
+              responses={**COMMAND_RESPONSES, 404: {"model": ErrorBody, "description": "no run record with this id"}},
+              tags=["recipe"])
+    def recipe_resume_run(run_id: RunId, body: RecipeResumeRequest,
+                          x_millctl_lease: LeaseId = None) -> RecipeResumeOut:
+        """Check (``confirm`` false) or resume (``confirm`` true) an interrupted run, from the mill's state now.
+
+        Refused (409) for a run that ended, one that runs, a recipe text or a configuration that changed since the
+        run started, and when the pre-flight finds a problem (each is named); the run then stays interrupted.
+        """
+        holder = rt.leases.check(x_millctl_lease).holder
+        prepared = rt.recipe.prepare_resume(run_id, body.text, rt.loaded.sha256, rt.config)  # the disk: not the loop
+        shown = unfinished_out(prepared.history)
+        if not body.confirm:
+            check = rt.call(lambda c: rt.recipe.check_out(rt.recipe.check_resume(prepared)), needs_node=False)
+            return RecipeResumeOut(run=shown, check=check, started=False, recipe=None)
+        lock = RunLock.acquire(prepared.history.path)  # one resume at a time, across services too
+        try:
+            torn = repair_tail(prepared.history.path)
+
+            def start(c: Controller) -> RecipeResumeOut:
+                check = rt.recipe.check_out(rt.recipe.check_resume(prepared))
+                rt.recipe.resume_run(prepared, lock, torn, holder)
+                return RecipeResumeOut(run=shown, check=check, started=True, recipe=rt.recipe.recipe_out())
+
+            return rt.call(start, needs_node=False)  # the check names a missing node with the other problems
+        except BaseException:
+            lock.release()
+            raise
+
+    @app.post("/v1/recipe/unfinished/{run_id}/abort", response_model=UnfinishedRunOut,
+              responses={**COMMAND_RESPONSES, 404: {"model": ErrorBody, "description": "no run record with this id"}},
+              tags=["recipe"])
+    def recipe_close_run(run_id: RunId, x_millctl_lease: LeaseId = None) -> UnfinishedRunOut:
+        """Close an interrupted run for good (its record ends ABORTED); nothing moves."""
+        holder = rt.leases.check(x_millctl_lease).holder
+        closed = rt.recipe.close_interrupted(run_id, holder)
+        rt.journal.add(EventKind.SERVICE, holder, f"interrupted run {run_id} closed by {holder} (ABORTED)",
+                       run_id=run_id)
+        out = unfinished_out(closed)
+        return out.model_copy(update={"state": RunState.ABORTED})
+
+    @app.post("/v1/recipe/check", response_model=RecipeCheckOut, responses=READ_RESPONSES, tags=["recipe"])
+    def recipe_check(body: RecipeRunRequest) -> RecipeCheckOut:
+        """Pre-flight a recipe sent as its TOML text against this service's envelope; nothing is started.
+
+        Answers 200 for a recipe that would be refused too, with every problem: a client can list recipes
+        with their verdicts (the TUI's recipe list) without holding control.
+        """
+        return rt.recipe.check(body.name, body.text, rt.config)
 
     @app.post("/v1/recipe/pause", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_pause(

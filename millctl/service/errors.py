@@ -11,6 +11,7 @@
 503    ``node_unreachable``    no node on the bus, or the control loop is down
 503    ``busy``                the control loop's command queue is full (nothing was done)
 413    ``body_too_large``      a request body over ``service.max_request_bytes`` (see limits.py)
+404    ``run_not_found``       no run record with this id (or not a readable one)
 =====  ======================  ====================================================
 """
 
@@ -26,6 +27,7 @@ from starlette.exceptions import HTTPException
 
 from millctl.api import ErrorBody, ErrorCode
 from millctl.errors import InterlockError, InvalidInputError
+from millctl.recipes.history import RunNotFound
 from millctl.safety import InterlockRefused
 from millctl.service.lease import LeaseError
 from millctl.service.recipe import RecipeRefused
@@ -88,6 +90,10 @@ async def _invalid_input(request: Request, exc: Exception) -> JSONResponse:
     return error_response(422, ErrorCode.INVALID_INPUT, str(exc), field="text")
 
 
+async def _run_not_found(request: Request, exc: Exception) -> JSONResponse:
+    return error_response(404, ErrorCode.RUN_NOT_FOUND, str(exc), field="run_id")
+
+
 async def _unreachable(request: Request, exc: Exception) -> JSONResponse:
     return error_response(503, ErrorCode.NODE_UNREACHABLE, str(exc))
 
@@ -111,6 +117,7 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(LeaseError, _lease)
     app.add_exception_handler(InterlockError, _interlock)
     app.add_exception_handler(InvalidInputError, _invalid_input)
+    app.add_exception_handler(RunNotFound, _run_not_found)
     app.add_exception_handler(NodeUnreachable, _unreachable)
     app.add_exception_handler(ServiceBusy, _busy)
     app.add_exception_handler(HTTPException, _http)

@@ -38,6 +38,7 @@ from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
 from millctl.errors import BusError
 from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
+from millctl.service.faults import embeds_node, require_simulated
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
 from millctl.service.recipe import RecipeSlot
@@ -86,9 +87,14 @@ class ServiceRuntime:
         clock: Clock | None = None,
         embed_node: bool | None = None,
         lease_ttl_s: float = DEFAULT_TTL_S,
+        fault_injection: bool = False,
     ) -> None:
         self.loaded = loaded
         config = self.config = loaded.config
+        if fault_injection:
+            require_simulated(config, embed_node)  # before anything is opened
+        self.fault_injection = fault_injection
+        """An instructor may inject the embedded node's faults (``/v1/sim/faults``; :mod:`.faults`)."""
         service = config.service
         self.clock = clock or MonotonicClock()
         self.records_dir = service_paths(loaded).records_dir
@@ -96,6 +102,8 @@ class ServiceRuntime:
         self.socket_path = ""
         """The socket the API is served on (set by :func:`millctl.service.serve`)."""
         self.records_warning: str | None = None
+        self.bus_warnings: list[str] = []
+        """What is wrong with the CAN link as the service started (socketcan: its bitrate, its state)."""
         """Why records cannot be written now (None while they can): shown in the status."""
         self.records = RecordQueue(on_change=self._records_changed)
         self.journal = Journal(self.records_dir, rotate_bytes=service.rotate_bytes, keep_files=service.keep_files,
@@ -113,11 +121,11 @@ class ServiceRuntime:
         self.controller = Controller(config, self.bus, self.clock, listener=self.journal.on_event)
         self.node: Any = None
         self._node_bus: can.BusABC | None = None
-        if config.bus.interface == "virtual" if embed_node is None else embed_node:
+        if embeds_node(config, embed_node):
             from firmware_sim.node import Node
 
             self._node_bus = open_bus(config.bus)
-            self.node = Node(config, self._node_bus, self.clock)
+            self.node = Node(config, self._node_bus, self.clock, fault_injection=fault_injection)
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
         self._halt = threading.Event()
         self._closed = False
@@ -141,6 +149,16 @@ class ServiceRuntime:
             bus_channel=self.config.bus.channel,
             embedded_node=self.node is not None,
         )
+        from millctl.protocol.bus_check import startup_link_problems
+
+        self.bus_warnings = startup_link_problems(self.config.bus)
+        for problem in self.bus_warnings:
+            self.journal.add(EventKind.BUS, "service", problem)
+        for run in self.recipe.unfinished():  # the runs a crash, a kill or a reboot left unfinished: offered, never run
+            self.journal.add(EventKind.SERVICE, "service", f"unfinished run {run.run_id} ({run.recipe}, step "
+                             f"{min(run.step, run.steps)}/{run.steps}): {run.reason}; `millctl recipe resume "
+                             f"{run.run_id}` continues it after a pre-flight, `millctl recipe abort {run.run_id}` "
+                             "closes it", run_id=run.run_id, record=str(run.path))
         self._thread.start()
 
     def wait_for_node(self, timeout_s: float) -> bool:
@@ -260,18 +278,24 @@ class ServiceRuntime:
         env = self.controller.envelope
         return ServiceOut(
             mill_name=self.config.name, simulated=self.node is not None, pid=os.getpid(), version=__version__,
+            fault_injection=self.fault_injection,
             started_unix=self.started_unix, config_path=self.loaded.source, config_sha256=self.loaded.sha256,
             law=env.law.value, margin=env.margin, bus_interface=self.config.bus.interface,
             bus_channel=self.config.bus.channel, embedded_node=self.node is not None, socket_path=self.socket_path,
             records_dir=str(self.records_dir), bus_log=str(self.bus_log_path), warnings=self.warnings(),
+            unfinished_runs=[run.run_id for run in self.recipe.unfinished()],
         )
 
     def warnings(self) -> list[str]:
-        """What the operator must know about the service itself (records that cannot be written)."""
+        """What the operator must know about the service: its CAN link, records not written, interrupted runs."""
+        found = [f"run {run.run_id} ({run.recipe}) is unfinished at step {min(run.step, run.steps)}/{run.steps}: "
+                 f"{run.reason}; `millctl recipe resume {run.run_id}` continues it"
+                 for run in self.recipe.unfinished()]
         if self.records_warning is None:
-            return []
-        return [f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
-                f"records dir {self.records_dir}); the mill is controlled as before"]
+            return [*self.bus_warnings, *found]
+        return [*self.bus_warnings,
+                f"records cannot be written: {self.records_warning} ({self.records.lost} records lost so far; "
+                f"records dir {self.records_dir}); the mill is controlled as before", *found]
 
     def _records_changed(self, failing: str | None) -> None:
         """On the records thread: writes started failing (or work again). Warn, record, stop a recipe."""
@@ -324,7 +348,7 @@ class ServiceRuntime:
         bound_s = self.stop_bound_s() if bound_s is None else bound_s
         if self.running:
             with self.lock:
-                self.recipe.abort_if_active("service", reason=reason)
+                self.recipe.interrupt_if_active(reason)  # stopped with the mill, resumable after the restart
                 if self.controller.state in (S.ARMED, S.RUNNING, S.STOPPING):
                     self.controller.stop(source="service", reason=reason)
             stopped = self._wait(self._at_rest, bound_s)

@@ -35,6 +35,7 @@ from millctl.config.paths import service_paths
 from millctl.errors import BusError, ConfigError, ExitCode
 from millctl.service.app import create_app
 from millctl.service.auth import TokenGuard, read_token
+from millctl.service.faults import require_simulated
 from millctl.service.runtime import EMBEDDED_NODE_WAIT_S, ServiceRuntime
 
 log = logging.getLogger(__name__)
@@ -143,15 +144,19 @@ def serve(
     socket_path: str | None = None,
     *,
     on_ready: Callable[[Path, ServiceOut], None] | None = None,
+    fault_injection: bool = False,
 ) -> int:
     """Run the service until SIGTERM/SIGINT; return the process exit code.
 
-    ``on_ready(socket, the GET /v1/service body)`` is called once it serves.
+    ``on_ready(socket, the GET /v1/service body)`` is called once it serves. ``fault_injection`` lets an
+    instructor inject the embedded simulated node's faults; refused (before anything starts) on a real bus.
 
     Files it creates are never readable by others: the umask is narrowed to
     SERVICE_UMASK for the service's life (records 0640, folders 0750).
     """
     service = loaded.config.service
+    if fault_injection:
+        require_simulated(loaded.config)
     path = service_paths(loaded, socket_path).socket
     os.umask(SERVICE_UMASK | os.umask(SERVICE_UMASK))
     token = None
@@ -170,7 +175,7 @@ def serve(
         try:
             if token is not None:
                 sockets.append(bind_tcp(service.tcp_port))
-            return _run(loaded, sockets, token, path, on_ready)
+            return _run(loaded, sockets, token, path, on_ready, fault_injection)
         finally:
             for sock in sockets:
                 sock.close()
@@ -183,8 +188,9 @@ def _run(
     token: str | None,
     path: Path,
     on_ready: Callable[[Path, ServiceOut], None] | None,
+    fault_injection: bool,
 ) -> int:
-    runtime = ServiceRuntime(loaded)
+    runtime = ServiceRuntime(loaded, fault_injection=fault_injection)
     runtime.socket_path = str(path)
     app: ASGIApp = create_app(runtime)
     if token is not None:

@@ -90,7 +90,7 @@ class DaskBackend:
         self._own = client is None
         if client is None:
             try:
-                client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
+                client = Client(address, timeout="10s")
             except OSError as exc:
                 raise InvalidInputError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
         self._client = client

@@ -51,6 +51,7 @@ class MillApp(Commanding, Following):
         Binding("p", "recipe_pause", "Pause"),
         Binding("b", "recipe_abort", "Abort run"),
         Binding("e", "envelope", "Envelope"),
+        Binding("f", "drill", "Fault drill"),
         Binding("c", "control", "Control"),
         Binding("q", "quit", "Quit"),
     ]
@@ -66,7 +67,14 @@ class MillApp(Commanding, Following):
             return True if self.online and self.state in ENABLED_IN[action] else None
         if action in RECIPE_ACTIONS:
             return True if self.online and self.recipe_active else None
+        if action == "drill":
+            return self.drills_allowed  # hidden, not greyed: only an instructor's service offers it
         return True
+
+    @property
+    def drills_allowed(self) -> bool:
+        """True when the service was started with ``--fault-injection`` (a simulated mill)."""
+        return self.service is not None and self.service.fault_injection
 
     def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:
         """Every mill command, searchable, next to textual's own."""
@@ -77,11 +85,15 @@ class MillApp(Commanding, Following):
         yield SystemCommand("Disarm", "Disarm (from ARMED at standstill)", self.action_disarm)
         yield SystemCommand("Reset trip", "Clear a latched trip (standstill, cause removed)", self.action_reset)
         yield SystemCommand("Heater off", "Turn the furnace heater off", self.action_heater_off)
-        yield SystemCommand("Run recipe file", "Start a recipe (pre-flighted by the service)", self.action_recipe_run)
+        yield SystemCommand("Run recipe", "Pick a recipe from the list, each with its pre-flight verdict",
+                            self.action_recipe_run)
         yield SystemCommand("Pause recipe now", "Pause the run now, holding the setpoints", self.action_pause_now)
         yield SystemCommand("Pause/resume recipe", "Pause at the next step boundary, or resume",
                             self.action_recipe_pause)
         yield SystemCommand("Abort recipe", "Abort the run with a controlled stop", self.action_recipe_abort)
+        if self.drills_allowed:
+            yield SystemCommand("Fault drill", "Inject a fault into the simulated node (instructor; f)",
+                                self.action_drill)
         yield SystemCommand("Envelope view", "Which rotary speed is safe: every law, the operating point (e)",
                             self.action_envelope)
         yield SystemCommand("Take control", "Take the control lease", self.action_take)

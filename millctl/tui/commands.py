@@ -15,12 +15,14 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from millctl.api import CommandOut
+from millctl.api import CommandOut, ServiceOut, SimFaultName
 from millctl.client import AsyncClient
+from millctl.tui.drill import DrillRequest, FaultDrillModal
 from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.format import MOVING_STATES
 from millctl.tui.link import LINK_ERRORS, describe
-from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal, SetRequest
+from millctl.tui.modals import ConfirmModal, SetpointsModal, SetRequest
+from millctl.tui.recipes import RecipePicker, recipe_files
 from millctl.tui.view import MillView
 
 Call = Callable[[AsyncClient], Awaitable[BaseModel]]
@@ -29,10 +31,12 @@ QUIT_RELEASE_S = 2.0
 """At most this long is spent giving control back when quitting (s)."""
 
 
-def default_recipe() -> str:
-    """A recipe path to offer first: ``config/recipes/demo.toml`` under the working directory, if present."""
-    demo = Path("config/recipes/demo.toml")
-    return str(demo.resolve()) if demo.is_file() else ""
+def recipe_folders(service: ServiceOut | None) -> list[Path]:
+    """Where the recipe picker looks: ``config/recipes`` here, and ``recipes`` beside the service's config."""
+    folders = [Path("config/recipes")]
+    if service is not None:
+        folders.append(Path(service.config_path).parent / "recipes")
+    return folders
 
 
 class Commanding(MillView):
@@ -120,8 +124,9 @@ class Commanding(MillView):
 
     # ------------------------------------------------------------------ recipes
     def action_recipe_run(self) -> None:
-        """Ask for a recipe file and run it."""
-        self.push_screen(RecipeModal(default_recipe()), self._recipe_chosen)
+        """Pick a recipe from the list, each with the service's pre-flight verdict, and run it."""
+        files = recipe_files(recipe_folders(self.service))
+        self.push_screen(RecipePicker(files, self.link.client.recipe_check), self._recipe_chosen)
 
     def _recipe_chosen(self, path: str | None) -> None:
         if path:
@@ -142,6 +147,18 @@ class Commanding(MillView):
     def action_recipe_abort(self) -> None:
         """Abort the run (controlled stop)."""
         self.send("abort recipe", lambda c: c.recipe_abort())
+
+    # ------------------------------------------------------------------ fault drills (serve --fault-injection)
+    def action_drill(self) -> None:
+        """Open the fault drill dialog (a service started with ``--fault-injection`` only)."""
+        self.push_screen(FaultDrillModal(self.link.client.faults), self._drill_chosen)
+
+    def _drill_chosen(self, request: DrillRequest | None) -> None:
+        if request is None:
+            return
+        what = "clear every fault" if request.fault is SimFaultName.CLEAR else f"inject {request.fault}"
+        self.send(f"drill: {what}", lambda c: c.inject_fault(request.fault, request.active, request.param),
+                  take=False)
 
     # ------------------------------------------------------------------ control and quitting
     def action_control(self) -> None:
@@ -192,4 +209,4 @@ class Commanding(MillView):
         self.exit()
 
 
-__all__ = ["QUIT_RELEASE_S", "Commanding", "default_recipe"]
+__all__ = ["QUIT_RELEASE_S", "Commanding", "recipe_folders"]

@@ -24,7 +24,7 @@ from millctl.api import EnvelopeOut, StatusOut
 from millctl.config.models import LimitLaw
 from millctl.safety.envelope import LAW_IN_WORDS
 from millctl.tui.format import num
-from millctl.tui.plot import Curve, render_plot
+from millctl.tui.plot import Curve, operating_points, render_plot
 
 LAW_COLOUR = {
     LimitLaw.PAPER_EQ9: "blue",
@@ -110,11 +110,7 @@ class EnvelopeScreen(Screen[None]):
         if envelope is None:
             plot.update(Text("waiting for the service’s envelope…"), layout=False)
             return
-        point = target = None
-        if s is not None and s.measured_vibration_rpm is not None and s.measured_rotary_rpm is not None:
-            point = (s.measured_vibration_rpm, s.measured_rotary_rpm)
-        if s is not None and s.target_vibration_rpm is not None and s.target_rotary_rpm is not None:
-            target = (s.target_vibration_rpm, s.target_rotary_rpm)
+        point, target = operating_points(s)
         width = max(plot.content_size.width, 20)
         height = max(plot.content_size.height, 6)
         plot.update(render_plot(Curve.from_envelope(envelope), width, height, point, target,

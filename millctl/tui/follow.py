@@ -53,6 +53,11 @@ class Following(MillView):
             self.service_started = service.started_unix
             self.last_seq = 0
             self.link.client.lease_id = None  # a lease does not outlive its service
+            for run_id in service.unfinished_runs:  # a run a crash, a kill or a reboot interrupted: offered, not run
+                self.notify(f"run {run_id} is unfinished (the service stopped under it): `millctl recipe resume "
+                            f"{run_id}` continues it after a pre-flight", title="interrupted run",
+                            severity="warning", timeout=30.0, markup=False)
+        self.apply_service(service)
         self.apply_envelope(await client.envelope(points=161))
         self.apply_status(await client.status())
         self.apply_control(await client.control_state())

@@ -1,4 +1,4 @@
-"""Modal dialogs: set speeds and furnace (checked against the service's envelope before sending), recipe, confirm.
+"""Modal dialogs: set speeds and furnace (checked against the service's envelope before sending), confirm.
 
 The setpoint dialog never decides a limit itself: every keystroke asks the
 service's ``POST /v1/envelope/check`` (the interlock's own
@@ -178,32 +178,6 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
         self.dismiss(None)
 
 
-class RecipeModal(ModalScreen[str | None]):
-    """Ask for a recipe file to run (a path on the service's machine; the service pre-flights it)."""
-
-    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape", "cancel", "Cancel")]
-
-    def __init__(self, default_path: str) -> None:
-        super().__init__()
-        self.default_path = default_path
-
-    def compose(self) -> ComposeResult:
-        """A path field and a hint."""
-        with Vertical(id="dialog", classes="dialog"):
-            yield Label("Run a recipe file (TOML); the service checks its whole plan first", classes="dialog-title")
-            yield Input(self.default_path, id="path", placeholder="path/to/recipe.toml")
-            yield Static("Enter runs it, Esc cancels. Pause/resume with p, abort with b.", classes="hint")
-
-    def on_input_submitted(self, event: Input.Submitted) -> None:
-        """Run the typed path."""
-        path = event.value.strip()
-        self.dismiss(path or None)
-
-    def action_cancel(self) -> None:
-        """Close without running."""
-        self.dismiss(None)
-
-
 class ConfirmModal(ModalScreen[bool]):
     """A yes/no question."""
 
@@ -227,4 +201,4 @@ class ConfirmModal(ModalScreen[bool]):
         self.dismiss(answer)
 
 
-__all__ = ["Checker", "ConfirmModal", "InputError", "RecipeModal", "SetRequest", "SetpointsModal", "parse_request"]
+__all__ = ["Checker", "ConfirmModal", "InputError", "SetRequest", "SetpointsModal", "parse_request"]

@@ -16,7 +16,7 @@ from textual.widgets import Sparkline, Static
 from millctl.api import BusCondition, ControlOut, EnvelopeOut, RecipeOut, StatusOut
 from millctl.client import describe_bus_health
 from millctl.tui.format import duration, e2e_errors, num, state_style
-from millctl.tui.plot import Curve, render_plot
+from millctl.tui.plot import Curve, operating_points, render_plot
 
 TREND_SAMPLES = 120
 """Samples kept in each trend sparkline (the service streams a status every 0.25 s: 30 s)."""
@@ -118,11 +118,7 @@ class EnvelopePanel(Static):
         if curve is None:
             self.update(Text("waiting for the service’s envelope…", style="dim"), layout=False)
             return
-        point = target = None
-        if s is not None and s.measured_vibration_rpm is not None and s.measured_rotary_rpm is not None:
-            point = (s.measured_vibration_rpm, s.measured_rotary_rpm)
-        if s is not None and s.target_vibration_rpm is not None and s.target_rotary_rpm is not None:
-            target = (s.target_vibration_rpm, s.target_rotary_rpm)
+        point, target = operating_points(s)
         width = max(self.content_size.width, 20)
         summary = self.summary(width)
         lines = len(summary.wrap(self.app.console, width))  # the summary wraps on a narrow screen: the plot gives way

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from rich.text import Text
 
-from millctl.api import EnvelopeOut
+from millctl.api import EnvelopeOut, StatusOut
 
 BRAILLE_BASE = 0x2800
 _DOT_BITS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))
@@ -74,6 +74,16 @@ class Curve:
         """Whether the law is the every-cycle bound at ``omega_v_rpm`` (the service's regime warning)."""
         above = self.not_every_cycle_above_rpm
         return above is None or (above > 0.0 and omega_v_rpm <= above)
+
+
+def operating_points(status: StatusOut | None) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+    """The measured point and the target as (ω_v, ω_r) in rpm, each None while unknown."""
+    point = target = None
+    if status is not None and status.measured_vibration_rpm is not None and status.measured_rotary_rpm is not None:
+        point = (status.measured_vibration_rpm, status.measured_rotary_rpm)
+    if status is not None and status.target_vibration_rpm is not None and status.target_rotary_rpm is not None:
+        target = (status.target_vibration_rpm, status.target_rotary_rpm)
+    return point, target
 
 
 Cells = tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]
@@ -171,4 +181,4 @@ def render_plot(
     return text
 
 
-__all__ = ["Curve", "render_plot"]
+__all__ = ["Curve", "operating_points", "render_plot"]

@@ -38,8 +38,9 @@ ORPHAN_CHECK_S = 1.0
 class SimService:
     """A private ``millctl serve`` with the simulated node, for the lifetime of a ``with`` block."""
 
-    def __init__(self, config: str | None = None) -> None:
+    def __init__(self, config: str | None = None, *, fault_injection: bool = False) -> None:
         self.config = config
+        self.fault_injection = fault_injection
         self.directory = Path(tempfile.mkdtemp(prefix="millctl-tui-"))
         self.socket_path = str(self.directory / "mill.sock")
         self.log_path = self.directory / "serve.log"
@@ -59,6 +60,8 @@ class SimService:
         command = [sys.executable, "-m", "millctl.tui.sim", "--dir", str(self.directory)]
         if self.config:
             command += ["--config", self.config]
+        if self.fault_injection:
+            command.append("--fault-injection")
         with self.log_path.open("wb") as out:
             self.proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
                                          start_new_session=True)  # the terminal's signals are the TUI's to handle
@@ -104,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m millctl.tui.sim", description=__doc__)
     parser.add_argument("--dir", required=True, help="private directory for the socket and records")
     parser.add_argument("--config", help="mill configuration (TOML)")
+    parser.add_argument("--fault-injection", action="store_true", help="let the TUI inject the node's faults")
     args = parser.parse_args(argv)
     loaded = load_config(args.config)
     directory = Path(args.dir)
@@ -115,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--sim runs the simulated node on the virtual bus; {args.config} uses {bus.interface}")
     loaded = dataclasses.replace(loaded, config=loaded.config.model_copy(update={"service": service}))
     threading.Thread(target=_stop_when_orphaned, args=(os.getppid(),), name="orphan-watch", daemon=True).start()
-    return serve(loaded)
+    return serve(loaded, fault_injection=args.fault_injection)
 
 
 def _stop_when_orphaned(parent_pid: int) -> None:

@@ -23,7 +23,9 @@ TrendPanel { height: 1fr; }
 #events { height: 1fr; min-height: 4; }
 .dialog { width: 84; max-width: 100%; height: auto; max-height: 100%; overflow-y: auto;
           border: thick $accent; background: $surface; padding: 1 2; }
-SetpointsModal, RecipeModal, ConfirmModal { align: center middle; }
+SetpointsModal, RecipePicker, FaultDrillModal, ConfirmModal { align: center middle; }
+#recipes, #faults { height: auto; max-height: 12; }
+#details, #meaning { height: auto; margin-top: 1; }
 .dialog-title { text-style: bold; margin-bottom: 1; }
 .dialog > Static { width: 100%; height: auto; }
 .field { height: 3; }

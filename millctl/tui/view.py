@@ -23,7 +23,16 @@ from textual.screen import Screen
 from textual.widgets import Footer, RichLog, Static
 from textual.worker import Worker, WorkerState
 
-from millctl.api import ControllerState, ControlOut, EnvelopeOut, EventKind, EventOut, RecipeOut, StatusOut
+from millctl.api import (
+    ControllerState,
+    ControlOut,
+    EnvelopeOut,
+    EventKind,
+    EventOut,
+    RecipeOut,
+    ServiceOut,
+    StatusOut,
+)
 from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.format import state_style
 from millctl.tui.legible import LegibleMonochrome
@@ -35,11 +44,12 @@ log = logging.getLogger(__name__)
 
 NOTIFY_KINDS: dict[EventKind, SeverityLevel] = {
     EventKind.TRIP: "error", EventKind.REFUSAL: "warning", EventKind.STATE: "information",
-    EventKind.CONTROL: "information", EventKind.SERVICE: "information",
+    EventKind.CONTROL: "information", EventKind.SERVICE: "information", EventKind.DRILL: "warning",
 }
 """Event kinds shown as notifications when they happen (the log shows every kind), with their severity."""
 EVENT_STYLE: dict[EventKind, str] = {
     EventKind.TRIP: "bold red", EventKind.REFUSAL: "yellow", EventKind.STATE: "cyan", EventKind.CONTROL: "magenta",
+    EventKind.DRILL: "bold magenta",
 }
 """How each kind of event is coloured in the log."""
 LEGIBLE = LegibleMonochrome()
@@ -64,6 +74,8 @@ class MillView(App[None]):
         self.control: ControlOut | None = None
         self.recipe: RecipeOut | None = None
         self.envelope: EnvelopeOut | None = None
+        self.service: ServiceOut | None = None
+        """The service we follow (``GET /v1/service``): its config, whether it allows fault drills."""
         self.online = False
         self.last_seq = 0
         self._applies: tuple[ControllerState | None, bool, bool] | None = None
@@ -141,6 +153,11 @@ class MillView(App[None]):
         self.show_trip(status)
         self.redraw_state()
         self.redraw_envelope_view()
+
+    def apply_service(self, service: ServiceOut) -> None:
+        """Take the service's description: the fault drill key shows only where drills are allowed."""
+        self.service = service
+        self.refresh_bindings()
 
     def apply_envelope(self, envelope: EnvelopeOut) -> None:
         """Take the service's limit curve (``GET /v1/envelope``)."""

@@ -195,7 +195,7 @@ class Adversary:
 
         def body(sender: Background) -> None:
             while not sender.halted:
-                frames = []
+                frames: list[can.Message] = []
                 for _ in range(frames_per_burst):
                     k = sender.sent + len(frames) + 1
                     ask = replace(

@@ -145,7 +145,7 @@ def _make_transport(name: str) -> Transport:
     scale = time_scale()
     if name == "virtual":
         # A channel of its own, so tests never hear each other.
-        kwargs = {"interface": "virtual", "channel": f"hil-{uuid.uuid4().hex[:8]}"}
+        kwargs: dict[str, Any] = {"interface": "virtual", "channel": f"hil-{uuid.uuid4().hex[:8]}"}
         return Transport(name, kwargs, crosses_processes=False, echoes_own_frames=False, time_scale=scale)
     if name == "udp_multicast":
         if reason := udp_multicast_unavailable():

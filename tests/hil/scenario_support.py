@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import can
 import pytest
@@ -61,6 +61,9 @@ if TYPE_CHECKING:
     import subprocess
 
     from tests.hil.conftest import Spawner, Transport
+
+M = TypeVar("M", bound=MillMessage)
+T = TypeVar("T")
 
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm), as in the controller."""
@@ -291,6 +294,12 @@ class Seen:
         """The decoded message; None when unknown or its CRC failed."""
         return self.decoded.message if self.decoded is not None else None
 
+    def of(self, kind: type[M]) -> M:
+        """The decoded message, which the caller has selected as a ``kind`` (fails the test if it is not one)."""
+        message = self.message
+        assert isinstance(message, kind), f"expected a {kind.__name__} frame, the probe saw {message!r}"
+        return message
+
     @property
     def crc_failed(self) -> bool:
         """True for an E2E-protected frame whose CRC did not check."""
@@ -400,7 +409,7 @@ class Probe:
 # --- the mill under test --------------------------------------------------------------------------------------
 
 
-def wait_for(condition: Callable[[], Any], timeout_s: float, what: str | Callable[[], str]) -> Any:
+def wait_for(condition: Callable[[], T | None], timeout_s: float, what: str | Callable[[], str]) -> T:
     """Poll ``condition()`` until it returns something true, and return it (a safety net, not a timing check).
 
     ``timeout_s`` comes stretched for load and the VM (``Transport.timeout``); ``what`` may be a
@@ -542,7 +551,7 @@ class Mill:
     def at_standstill(self) -> bool:
         """Both measured speeds (as the controller sees them) below the standstill threshold."""
         s = self.status()
-        return max(abs(s["measured_rotary_rpm"]), abs(s["measured_vibration_rpm"])) < STANDSTILL_RPM
+        return max(abs(float(s["measured_rotary_rpm"])), abs(float(s["measured_vibration_rpm"]))) < STANDSTILL_RPM
 
     def outside_envelope(self, frames: list[Seen]) -> list[tuple[float, float]]:
         """Measured pairs in ``frames`` that the envelope (with the measurement tolerance) does not contain."""

@@ -10,7 +10,7 @@ and prints its reaction time as ``HIL-TIMING {json}`` (docs/safety.md).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -49,6 +49,7 @@ from tests.hil.scenario_support import (
     report_timing,
     wait_for,
 )
+from tests.support.pace import cpu_share
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -75,9 +76,8 @@ def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple
             adversary.close()
 
 
-def wait_status(mill: Mill, probe: Probe, where: object, after: float, what: str) -> Seen:
-    assert callable(where)
-    return probe.wait_first(where, after, mill.timeout(3.0), what)  # type: ignore[arg-type]
+def wait_status(mill: Mill, probe: Probe, where: Callable[[Seen], bool], after: float, what: str) -> Seen:
+    return probe.wait_first(where, after, mill.timeout(3.0), what)
 
 
 def processes_alive(mill: Mill) -> None:
@@ -126,7 +126,11 @@ def test_estop_inside_a_flood_on_0x001_at_the_buss_maximum_rate(
     mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
     m, probe, adversary = mill
-    rate_hz = MAX_FRAME_RATE_HZ / load_scale()  # in the VM: the bus's maximum relative to the machine's speed now
+    # The bus's maximum rate as this machine can run it now: in the VM relative to its measured slowdown, and on
+    # a loaded host times the CPU share a process gets. A flood the node's process cannot drain overflows its
+    # socket's receive buffer, and the kernel drops datagrams, the E-stop among them: an artefact of emulating
+    # CAN over UDP (on the wire, the E-stop wins arbitration). The E-stop's reaction bound stays physical.
+    rate_hz = MAX_FRAME_RATE_HZ / load_scale() * cpu_share()
     t_flood = time.monotonic()
     flood = adversary.flood(raw_frame(0x001, bytes(8), dlc=8), rate_hz)
     time.sleep(m.timeout(1.0))

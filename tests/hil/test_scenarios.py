@@ -182,7 +182,7 @@ def test_over_limit_setpoint_refused_by_the_controller(mill: Mill) -> None:
     if mill.probe is not None:
         sent = mill.probe.frames(t_request, lambda s: isinstance(s.message, Setpoints))
         assert sent, "the controller keeps sending its (standstill) setpoints"
-        assert {(s.message.rotary_rpm, s.message.vibration_rpm) for s in sent} == {(0.0, 0.0)}
+        assert {(s.of(Setpoints).rotary_rpm, s.of(Setpoints).vibration_rpm) for s in sent} == {(0.0, 0.0)}
 
 
 # --- defence in depth: the node ---------------------------------------------------------------------------------
@@ -191,7 +191,7 @@ def test_over_limit_setpoint_refused_by_the_controller(mill: Mill) -> None:
 def send_as_the_controller(probe: Probe, setpoints: Setpoints, timeout_s: float) -> float:
     """Send ``setpoints`` with the counter the node expects next: right after the controller's own frame."""
     own = probe.wait_first(is_kind(Setpoints), probe.now(), timeout_s, "a Setpoints frame from the controller")
-    assert own.decoded is not None
+    assert own.decoded is not None and own.decoded.counter is not None
     return probe.send(setpoints, counter=(own.decoded.counter + 1) % 16)
 
 
@@ -258,9 +258,9 @@ def test_rogue_senders_setpoint_refused_by_the_node(
             mill.timeout(2.0),
             "the node's refusal",
         )
-        if reply.message.last_refusal is not RefusalCode.E2E:  # lost the race with the controller's frame: again
+        if reply.of(NodeStatus).last_refusal is not RefusalCode.E2E:  # lost the race with the controller's frame: again
             break
-    assert reply.message.last_refusal is refusal
+    assert reply.of(NodeStatus).last_refusal is refusal
     bound_s = mill.bounds.node_reports_s
     report_timing(capsys, f"rogue_{case}_refused", transport.name, reply.t - t_sent, bound_s)
     assert reply.t - t_sent <= bound_s
@@ -299,7 +299,7 @@ def test_vibration_stall_trips_and_stops_inside_the_envelope(
     tripped = mill.wait_state("TRIPPED")
     assert re.search(r"envelope|ENVELOPE|STALL", tripped["trip_cause"]), tripped["trip_cause"]
     rest = wait_standstill_on_bus(mill, stop.t, 20.0)
-    rotary = [s.message.rotary_rpm for s in drive_frames(probe, stop.t) if s.t <= rest.t]
+    rotary = [s.of(DriveTelemetry).rotary_rpm for s in drive_frames(probe, stop.t) if s.t <= rest.t]
     tolerance = mill.config.interlock.measurement_tolerance_rpm
     assert all(b <= a + tolerance for a, b in itertools.pairwise(rotary)), "the rotary drive only slows down"
     assert mill.status()["state"] == "TRIPPED"  # latched
@@ -331,7 +331,7 @@ def test_controller_killed_node_stops_motors_and_heater_within_the_watchdog_boun
     assert measured_s <= bound_s
 
     furnace = probe.wait_first(is_kind(FurnaceTelemetry), fault.t, mill.timeout(2.0), "FurnaceTelemetry")
-    assert furnace.message.heater_on is False
+    assert furnace.of(FurnaceTelemetry).heater_on is False
     rest = wait_standstill_on_bus(mill, fault.t, 20.0)
     assert mill.outside_envelope(drive_frames(probe, fault.t)) == []  # the node's stop stays inside
     probe.wait_first(is_status(NodeState.FAULT, FaultCode.WATCHDOG), rest.t, mill.timeout(1.0), "the fault latched")
@@ -358,7 +358,7 @@ def test_node_killed_and_restarted_mid_run_controller_trips_and_nothing_runs_wit
     mill.start_node()
     # the new node boots DISABLED, or FAULT at once when the controller's repeated E-stop reaches it first
     first = probe.wait_first(is_status(), t_restart, mill.timeout(30.0), "the restarted node")
-    assert first.message.state in {NodeState.DISABLED, NodeState.FAULT}
+    assert first.of(NodeStatus).state in {NodeState.DISABLED, NodeState.FAULT}
     time.sleep(1.0)
     assert mill.status()["state"] == "TRIPPED"  # latched across the restart
     mill.client.take_control()  # renew the lease: a restart in the VM outlasts it
@@ -369,9 +369,9 @@ def test_node_killed_and_restarted_mid_run_controller_trips_and_nothing_runs_wit
     statuses = probe.frames(t_restart, lambda s: isinstance(s.message, NodeStatus))
     # never ARMED, never RUNNING; FAULT when the controller's E-stop (its lost STOP escalated, repeated until a
     # node reports it: docs/safety.md#every-command-confirmed) reached the new node before the reset cleared it
-    assert {s.message.state for s in statuses} <= {NodeState.DISABLED, NodeState.FAULT}
-    assert statuses[-1].message.state is NodeState.DISABLED
-    drives = [s.message for s in drive_frames(probe, t_restart)]
+    assert {s.of(NodeStatus).state for s in statuses} <= {NodeState.DISABLED, NodeState.FAULT}
+    assert statuses[-1].of(NodeStatus).state is NodeState.DISABLED
+    drives = [s.of(DriveTelemetry) for s in drive_frames(probe, t_restart)]
     assert drives and max(max(abs(d.rotary_rpm), abs(d.vibration_rpm)) for d in drives) < STANDSTILL_RPM
     assert not probe.frames(t_reset, lambda s: isinstance(s.message, Setpoints) and s.message.rotary_rpm > 0)
 
@@ -408,7 +408,7 @@ def test_frame_loss_and_corruption_are_counted_and_the_mill_stays_safe(
 
     t_all = probe.inject(SimFaultCode.TX_CORRUPT, 1.0)  # persistent errors fault the link
     stop = probe.wait_first(is_command(CommandCode.STOP), t_all, mill.timeout(5.0), "the controller's STOP")
-    first_bad = probe.frames(t_all, lambda s: s.crc_failed and s.decoded.kind is DriveTelemetry)[0]
+    first_bad = probe.frames(t_all, lambda s: s.crc_failed and is_kind(DriveTelemetry)(s))[0]
     measured_s = stop.t - first_bad.t
     bound_s = mill.bounds.e2e_trip_s
     report_timing(capsys, "e2e_trip_on_corruption", transport.name, measured_s, bound_s)

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 import can
 import pytest
 
+from tests.support.pace import Deadline
+
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
 
@@ -140,8 +142,8 @@ def test_spawn_reaps_children_and_reports_leaks(spawn: Spawner) -> None:
     """The process fixture itself: a child left running (with a grandchild) is reported and killed."""
     script = "import subprocess, time; subprocess.Popen(['sleep', '600']); print('up', flush=True); time.sleep(600)"
     proc = spawn(["python", "-c", script])
-    deadline = time.monotonic() + 10.0 * spawn.scale
-    while "up" not in spawn.output(proc) and time.monotonic() < deadline:
+    deadline = Deadline(10.0)
+    while "up" not in spawn.output(proc) and not deadline.expired():
         time.sleep(0.05)
     leaked = spawn.cleanup()
     assert len(leaked) == 1 and "sleep(600)" in leaked[0]

@@ -26,9 +26,10 @@ __all__ = ["Service", "start_fault_service", "start_service", "until"]
 
 
 def start_fault_service(directory: Path) -> Service:
-    """Start :mod:`tests.support.fault_service` (SIGUSR1: vibration stall, SIGUSR2: clear) in ``directory``."""
+    """Start ``millctl serve --fault-injection`` in ``directory``: faults are injected through ``/v1/sim/faults``."""
     config = write_config(directory)
-    return start_service(directory, module_args=["tests.support.fault_service", str(config)], what="the fault service")
+    return start_service(directory, module_args=["millctl", "--config", str(config), "serve", "--fault-injection"],
+                         what="millctl serve --fault-injection")
 
 
 @pytest.fixture

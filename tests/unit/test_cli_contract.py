@@ -13,12 +13,13 @@ from pathlib import Path
 import httpx
 import pytest
 
+from millctl.api import RecipeProgress
 from millctl.cli import build_parser, main
 from millctl.cli.failures import describe_failure
 from millctl.cli.output import JSON_SCHEMA_VERSION, write_atomically
 from millctl.client import raise_for_error
 from millctl.client_errors import InterlockRefusal, RequestInvalid
-from millctl.errors import ExitCode
+from millctl.errors import ExitCode, MillctlError
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -71,11 +72,12 @@ def test_refusals_exit_2_from_every_command(tmp_path: Path, capsys: pytest.Captu
     error = json.loads(capsys.readouterr().out)["error"]
     assert error["exit_code"] == 2 and "exceeds the limit" in error["problems"][0]
     refusal = _raised(409, {"code": "interlock_refused", "message": "refused", "field": "omega_r"})
-    assert describe_failure(refusal)[0] == ExitCode.INTERLOCK == 2
+    assert describe_failure(refusal)[0] == ExitCode.INTERLOCK.value == 2
 
 
-def _raised(status: int, body: dict[str, object]) -> Exception:
-    with pytest.raises(Exception) as raised:
+def _raised(status: int, body: dict[str, object]) -> MillctlError:
+    """The error the client raises for this answer (one of millctl's own: a crash would fail here)."""
+    with pytest.raises(MillctlError) as raised:
         raise_for_error(httpx.Response(status, json=body), "service socket /x")
     return raised.value
 
@@ -99,7 +101,7 @@ def test_ctrl_c_does_not_reuse_the_refusal_code(monkeypatch: pytest.MonkeyPatch,
 
     monkeypatch.setattr("millctl.cli.limits_cmd.limits_table", interrupted)
     code = main(["limits", "--json"])
-    assert code == ExitCode.INTERRUPTED == 130 and code != ExitCode.INTERLOCK
+    assert code == ExitCode.INTERRUPTED.value == 130 and code != ExitCode.INTERLOCK
     assert json.loads(capsys.readouterr().out)["error"]["code"] == "interrupted"
 
 
@@ -143,10 +145,14 @@ def test_shell_completion(capsys: pytest.CaptureFixture[str]) -> None:
     assert "millctl" in script and "--rot-rpm" in script
 
 
+def _write_png(path: Path) -> None:
+    path.write_bytes(b"png")
+
+
 def test_figures_are_written_with_the_users_umask(tmp_path: Path) -> None:
     old = os.umask(0o022)
     try:
-        write_atomically(tmp_path / "fig.png", lambda p: p.write_bytes(b"png"))
+        write_atomically(tmp_path / "fig.png", _write_png)
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "fig.png").stat().st_mode) == 0o644
@@ -162,9 +168,7 @@ def test_docs_name_no_file_a_user_does_not_have() -> None:
         assert "../shared/" not in doc.read_text(), doc
 
 
-def _progress(**changes: object) -> object:
-    from millctl.api import RecipeProgress
-
+def _progress(**changes: object) -> RecipeProgress:
     base = {"run_id": "r", "recipe": "demo", "recipe_file": "demo.toml", "state": "RUNNING", "reason": "",
             "step": 2, "steps": 4, "kind": "hold", "elapsed_s": 10.0, "step_elapsed_s": 1.0, "remaining_s": 30.0,
             "record": "x.jsonl"}
@@ -174,12 +178,12 @@ def _progress(**changes: object) -> object:
 def test_recipe_run_progress_never_shows_none_and_counts_the_stop_down(monkeypatch: pytest.MonkeyPatch) -> None:
     from millctl.cli import recipe_run_cmd as cmd
 
-    assert cmd._step(_progress()) == "step 2/4 (hold)"  # type: ignore[arg-type]
+    assert cmd._step(_progress()) == "step 2/4 (hold)"
     stopping = _progress(state="STOPPING", step=4, kind=None, remaining_s=8.0)
-    assert "None" not in cmd._line(stopping) and "stopping" in cmd._step(stopping)  # type: ignore[arg-type]
+    assert "None" not in cmd._line(stopping) and "stopping" in cmd._step(stopping)
     now = [100.0]
-    monkeypatch.setattr(cmd.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr("millctl.cli.recipe_run_cmd.time.monotonic", lambda: now[0])
     clock = cmd._StopClock()
-    assert clock.remaining_s(stopping) == 8.0  # type: ignore[arg-type]
+    assert clock.remaining_s(stopping) == 8.0
     now[0] += 3.0
-    assert clock.remaining_s(stopping) == 5.0  # type: ignore[arg-type]  # the service's figure stays at 8
+    assert clock.remaining_s(stopping) == 5.0  # the service's figure stays at 8

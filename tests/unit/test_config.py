@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from millctl.cli import main
-from millctl.config import ENV_VAR, load_config, resolve_config_path
+from millctl.config import ENV_VAR, MillConfig, load_config, resolve_config_path
 from millctl.errors import ConfigError, ExitCode
 from tests.conftest import CONFIG_FILE
 
@@ -21,7 +21,7 @@ def write_variant(tmp_path: Path, old: str, new: str) -> Path:
     return path
 
 
-def test_default_config_is_set_a(config):
+def test_default_config_is_set_a(config: MillConfig) -> None:
     assert config.mill.rods.radius_mm == 6.0
     assert config.mill.vial.radius_mm == 24.0
     assert config.rod_mass_kg == pytest.approx(0.0886, abs=5e-4)
@@ -43,7 +43,9 @@ def test_default_config_is_set_a(config):
     ],
     ids=["type", "range", "range-margin", "unknown-key", "enum", "rod-too-big", "packing", "material", "timing"],
 )
-def test_invalid_field_is_named_with_value_and_bound(tmp_path, capsys, old, new, pattern):
+def test_invalid_field_is_named_with_value_and_bound(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], old: str, new: str, pattern: str
+) -> None:
     path = write_variant(tmp_path, old, new)
     with pytest.raises(ConfigError) as info:
         load_config(path)
@@ -53,27 +55,27 @@ def test_invalid_field_is_named_with_value_and_bound(tmp_path, capsys, old, new,
     assert re.search(pattern, capsys.readouterr().err)
 
 
-def test_every_problem_is_reported_at_once(tmp_path):
+def test_every_problem_is_reported_at_once(tmp_path: Path) -> None:
     path = write_variant(tmp_path, "margin = 0.05", "margin = -1\nspeed = 2")
     with pytest.raises(ConfigError) as info:
         load_config(path)
     assert len(info.value.problems) == 2
 
 
-def test_missing_file(tmp_path, capsys):
+def test_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     missing = tmp_path / "nope.toml"
     assert main(["--config", str(missing), "config", "show"]) == ExitCode.INVALID_INPUT
     assert f"{missing}: no such file" in capsys.readouterr().err
 
 
-def test_bad_toml_syntax(tmp_path, capsys):
+def test_bad_toml_syntax(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "bad.toml"
     path.write_text("[mill\nrods = 1\n")
     assert main(["config", "check", str(path)]) == ExitCode.INVALID_INPUT
     assert "TOML syntax error" in capsys.readouterr().err
 
 
-def test_precedence(tmp_path, monkeypatch):
+def test_precedence(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert resolve_config_path(None).name == "mill.toml"  # packaged default
     assert "millctl" in str(resolve_config_path(None))
@@ -86,7 +88,7 @@ def test_precedence(tmp_path, monkeypatch):
     assert resolve_config_path("/cli/mill.toml") == Path("/cli/mill.toml")
 
 
-def test_packaged_default_loads(tmp_path, monkeypatch):
+def test_packaged_default_loads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv(ENV_VAR, raising=False)
     loaded = load_config()
@@ -94,7 +96,7 @@ def test_packaged_default_loads(tmp_path, monkeypatch):
     assert len(loaded.sha256) == 64
 
 
-def test_config_show_json(capsys):
+def test_config_show_json(capsys: pytest.CaptureFixture[str]) -> None:
     import json
 
     assert main(["--config", str(CONFIG_FILE), "config", "show", "--json"]) == ExitCode.OK

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from millctl.config import G_M_S2, LimitLaw
+from millctl.config import G_M_S2, LimitLaw, MillConfig
 from millctl.physics.limits import (
     LimitParams,
     omega_r_max,
@@ -15,15 +15,16 @@ from millctl.physics.limits import (
     regime_flags,
     switch_omega_v_rad_s,
 )
+from millctl.safety import Envelope
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
 
 @pytest.fixture(scope="module")
-def p(config) -> LimitParams:
+def p(config: MillConfig) -> LimitParams:
     return LimitParams.from_config(config)
 
 
-def test_reference_point_set_a(p):
+def test_reference_point_set_a(p: LimitParams) -> None:
     """MODEL-NOTES: printed eq. 9 ≈ 200 rpm and the paper's every-cycle bound ≈ 98.5 rpm at 800 rpm."""
     w_v = rpm_to_rad_s(800.0)
     assert rad_s_to_rpm(omega_r_max(LimitLaw.PAPER_EQ9, p, w_v)) == pytest.approx(200.0, abs=0.5)
@@ -48,7 +49,7 @@ SET_A_LIMITS_RAD_S = {
 
 
 @pytest.mark.parametrize("omega_v_rpm", sorted(SET_A_LIMITS_RAD_S))
-def test_laws_match_independent_high_precision_values(p, omega_v_rpm):
+def test_laws_match_independent_high_precision_values(p: LimitParams, omega_v_rpm: float) -> None:
     w = rpm_to_rad_s(omega_v_rpm)
     printed, every_cycle, every_phase, best_phase = SET_A_LIMITS_RAD_S[omega_v_rpm]
     assert omega_r_max(LimitLaw.PAPER_EQ9, p, w) == pytest.approx(printed, rel=1e-12)
@@ -59,7 +60,7 @@ def test_laws_match_independent_high_precision_values(p, omega_v_rpm):
     assert omega_r_max_eq8a(p, w, -1.0) == pytest.approx(printed, rel=1e-12)
 
 
-def test_every_cycle_bound_is_continuous_across_switch(p):
+def test_every_cycle_bound_is_continuous_across_switch(p: LimitParams) -> None:
     w_s = switch_omega_v_rad_s(p)
     eps = w_s * 1e-9
     below = omega_r_max(LimitLaw.PAPER_EVERY_CYCLE, p, w_s - eps)
@@ -71,12 +72,12 @@ def test_every_cycle_bound_is_continuous_across_switch(p):
     )
 
 
-def test_every_cycle_bound_is_below_printed_eq9_above_switch(p):
+def test_every_cycle_bound_is_below_printed_eq9_above_switch(p: LimitParams) -> None:
     w = np.linspace(switch_omega_v_rad_s(p) * 1.01, rpm_to_rad_s(1200.0), 50)
     assert np.all(omega_r_max(LimitLaw.PAPER_EVERY_CYCLE, p, w) < omega_r_max(LimitLaw.PAPER_EQ9, p, w))
 
 
-def test_regime_flags(p):
+def test_regime_flags(p: LimitParams) -> None:
     w = rpm_to_rad_s(np.array([0.0, 800.0, 1100.0]))
     flags = regime_flags(LimitLaw.CORRECTED_EVERY_PHASE, p, w)
     assert flags.spring_below_inertia.tolist() == [False, True, True]
@@ -84,7 +85,7 @@ def test_regime_flags(p):
     assert flags.no_real_limit.tolist() == [False, False, True]
 
 
-def test_numerator_near_zero_keeps_its_digits():
+def test_numerator_near_zero_keeps_its_digits() -> None:
     """Eq. 9's numerator m(g + r_d ω_v²) − k r_d near its zero: compare with exact rationals."""
     from fractions import Fraction
 
@@ -99,7 +100,7 @@ def test_numerator_near_zero_keeps_its_digits():
 
 
 @given(st.floats(0.0, 200.0), st.floats(-1.0, 1.0))
-def test_eq8a_is_monotone_in_phase_when_stiff(w_v, s):
+def test_eq8a_is_monotone_in_phase_when_stiff(w_v: float, s: float) -> None:
     p = LimitParams(rod_mass_kg=0.0886, r0_m=0.018, eccentricity_m=1e-3, spring_n_per_m=92.0)
     if p.spring_n_per_m > p.rod_mass_kg * w_v * w_v:
         assert omega_r_max_eq8a(p, w_v, s) >= omega_r_max_eq8a(p, w_v, -1.0) - 1e-12
@@ -107,7 +108,7 @@ def test_eq8a_is_monotone_in_phase_when_stiff(w_v, s):
         assert omega_r_max_eq8a(p, w_v, s) >= omega_r_max_eq8a(p, w_v, 1.0) - 1e-12
 
 
-def _agreement_points(envelope, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def _agreement_points(envelope: Envelope, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Random speed pairs plus the edges: the limit itself and its neighbouring floats, the drive limits,
     zero, −0, negatives, nan and inf."""
     rng = np.random.default_rng(seed)
@@ -127,14 +128,13 @@ def _agreement_points(envelope, count: int, seed: int) -> tuple[np.ndarray, np.n
 
 @pytest.mark.parametrize("cam", ["single", "double"])
 @pytest.mark.parametrize("law", list(LimitLaw))
-def test_scalar_interlock_agrees_with_vectorised_on_1e5_points(config, law, cam):
+def test_scalar_interlock_agrees_with_vectorised_on_1e5_points(config: MillConfig, law: LimitLaw, cam: str) -> None:
     """The interlock's plain-math scalar path gives bitwise the vectorised verdicts (issue 17, item 3);
     its speed (≤ 1 µs a check) is measured by ``python -m bench``, not asserted here."""
     import dataclasses
 
     from millctl.config.models import CamShape
     from millctl.physics.limits import omega_r_max_scalar
-    from millctl.safety import Envelope
 
     base = Envelope.from_config(config, law=law)
     envelope = dataclasses.replace(base, params=dataclasses.replace(base.params, cam=CamShape(cam)))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
@@ -47,12 +48,13 @@ def test_the_envelope_panel_names_every_law_the_regime_and_the_points() -> None:
 
 def test_the_allowed_region_is_the_enforced_envelope_and_the_hatch_starts_at_the_switch() -> None:
     ax = limits_figure(ENVELOPE, "Set A").axes[0]
-    (allowed,) = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_label().startswith("allowed")]
-    top = allowed.get_paths()[0].vertices[:, 1].max()
+    polygons = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    (allowed,) = [c for c in polygons if str(c.get_label()).startswith("allowed")]
+    top = np.asarray(allowed.get_paths()[0].vertices)[:, 1].max()
     assert top == pytest.approx(float(ENVELOPE.omega_r_limit_rpm(ENVELOPE.vibration_max_rpm)), rel=1e-9)
-    (hatched,) = [p for p in ax.patches if p.get_label().startswith("⚠")]
+    (hatched,) = [p for p in ax.patches if str(p.get_label()).startswith("⚠")]
     assert hatched.get_hatch() == "//"
-    assert hatched.get_path().vertices[:, 0].min() == 0.0  # axvspan in axes-relative x ...
+    assert np.asarray(hatched.get_path().vertices)[:, 0].min() == 0.0  # axvspan in axes-relative x ...
     x0 = hatched.get_transform().transform((0.0, 0.0))[0]
     assert ax.transData.inverted().transform((x0, 0.0))[0] == pytest.approx(307.8, abs=0.05)  # ... at 307.8 rpm
 
@@ -68,8 +70,8 @@ def test_the_sin_alpha_panel_shades_the_admissible_phases() -> None:
     assert "admissible: eq. 7 gives a real detachment angle" in labels
     assert "printed eq. 8b (erratum: inconsistent units, not used)" in labels
     ax = fig.axes[1]
-    (shade,) = [c for c in ax.collections if c.get_label().startswith("admissible")]
-    ys = shade.get_paths()[0].vertices[:, 1]
+    (shade,) = [c for c in ax.collections if str(c.get_label()).startswith("admissible")]
+    ys = np.asarray(shade.get_paths()[0].vertices)[:, 1]
     assert ys.min() == pytest.approx(-1.0) and ys.max() == pytest.approx(1.0)  # only sin α ∈ [−1, 1] is shaded
     assert ax.get_ylim() == pytest.approx((-1.15, 1.15))
 

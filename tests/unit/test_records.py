@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from millctl.records import RecordWriter, read_records
 
 
-def test_each_record_is_one_parseable_line(tmp_path):
+def test_each_record_is_one_parseable_line(tmp_path: Path) -> None:
     writer = RecordWriter(tmp_path, "events")
     for i in range(3):
         writer.write({"kind": "state", "i": i, "reason": "ünïcode ok"})
@@ -19,7 +20,7 @@ def test_each_record_is_one_parseable_line(tmp_path):
     writer.close()
 
 
-def test_rotation_keeps_the_newest(tmp_path):
+def test_rotation_keeps_the_newest(tmp_path: Path) -> None:
     writer = RecordWriter(tmp_path, "events", rotate_bytes=1024, keep=2, sync=False)
     for i in range(200):
         writer.write({"i": i, "pad": "x" * 40})
@@ -32,7 +33,7 @@ def test_rotation_keeps_the_newest(tmp_path):
     assert previous[-1] + 1 == newest[0]
 
 
-def test_torn_last_line_is_skipped_but_corruption_inside_is_not(tmp_path):
+def test_torn_last_line_is_skipped_but_corruption_inside_is_not(tmp_path: Path) -> None:
     path = tmp_path / "r.jsonl"
     path.write_text('{"a": 1}\n{"a": 2}\n{"a": 3, "b"')
     assert [r["a"] for r in read_records(path)] == [1, 2]

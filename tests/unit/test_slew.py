@@ -77,3 +77,9 @@ def test_a_step_larger_than_the_allowance_leaves_none_and_a_clock_going_back_add
 def test_a_budget_that_bounds_nothing_is_refused_naming_the_value(rate: float, burst: float) -> None:
     with pytest.raises(ValueError, match=r"slew (rate|burst) .*must be finite and > 0"):
         SlewBudget(rate, burst)
+
+
+@pytest.mark.parametrize(("rate", "burst"), [(0.01, 0.01), (0.5, 0.5)])
+def test_any_positive_rate_and_burst_make_a_budget(rate: float, burst: float) -> None:
+    budget = SlewBudget(rate, burst)
+    assert budget.allows(burst, 0.0) and not budget.allows(burst * 1.01, 0.0)

@@ -24,6 +24,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from tests.support.pace import stretched
 from tests.support.service import REPO, Service, private_dir, start_service, wait_for, write_config
 
 HEARTBEAT_ID = "020"
@@ -82,7 +83,7 @@ def _post_streamed_huge_body(sock_path: Path) -> int:
             yield block
 
     try:
-        with httpx.Client(transport=httpx.HTTPTransport(uds=str(sock_path)), timeout=30.0) as http:
+        with httpx.Client(transport=httpx.HTTPTransport(uds=str(sock_path)), timeout=stretched(30.0)) as http:
             return http.post("http://millctl/v1/recipe/run", content=chunks()).status_code
     except (httpx.TransportError, OSError):
         return 0
@@ -192,7 +193,7 @@ def test_a_client_from_another_folder_finds_the_running_service() -> None:
         try:
             wait_for(sock.exists, 30.0, f"the service socket {sock}: {log.read_text()}")
             status = subprocess.run([sys.executable, "-m", "millctl", "status", "--json"], cwd=directory / "client-cwd",
-                                    env=env, capture_output=True, text=True, timeout=60, check=False)
+                                    env=env, capture_output=True, text=True, timeout=stretched(60.0), check=False)
             assert status.returncode == 0, status.stderr
             mill = json.loads(status.stdout)["result"]["mill"]
             assert mill["socket_path"] == str(sock) and mill["simulated"] is True

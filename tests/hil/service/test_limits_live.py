@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from tests.support.service import run_millctl, wait_for
+from tests.support.service import Service, run_millctl, wait_for
 
 
-def test_plot_live_reads_the_running_mill(service):
+def test_plot_live_reads_the_running_mill(service: Service) -> None:
     with service.client() as mill, mill.control():
         mill.arm()
         mill.set_speeds(60.0, 300.0)

@@ -8,7 +8,8 @@ import sys
 from pathlib import Path
 
 from millctl.records import read_records
-from tests.support.service import REPO, private_dir, run_millctl, start_service, wait_for, write_config
+from tests.support.pace import stretched
+from tests.support.service import REPO, Service, private_dir, run_millctl, start_service, wait_for, write_config
 
 SHORT = """
 [recipe]
@@ -41,7 +42,7 @@ def recipe(directory: Path, hold_s: float = 1.0) -> Path:
     return path
 
 
-def test_run_prints_a_summary_and_writes_a_complete_record(service):
+def test_run_prints_a_summary_and_writes_a_complete_record(service: Service) -> None:
     result = run_millctl(service.config, "recipe", "run", str(recipe(service.config.parent)), "--json", timeout_s=90)
     assert result.returncode == 0, result.stderr
     import json
@@ -53,7 +54,7 @@ def test_run_prints_a_summary_and_writes_a_complete_record(service):
     assert records[0]["recipe_file"].endswith("short.toml") and len(records[0]["config_sha256"]) == 64
 
 
-def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after():
+def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after() -> None:
     with private_dir() as directory:
         config = fast_mill(directory)
         result = run_millctl(config, "recipe", "run", str(recipe(directory)), timeout_s=120)
@@ -63,7 +64,7 @@ def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after():
         assert not (directory / "mill.sock").exists()
 
 
-def test_a_bad_recipe_is_refused_before_anything_moves(service):
+def test_a_bad_recipe_is_refused_before_anything_moves(service: Service) -> None:
     bad = service.config.parent / "bad.toml"
     bad.write_text('[recipe]\nname = "bad"\n[[steps]]\nkind = "ramp"\nrotary_rpm = 250\nvibration_rpm = 800\n')
     result = run_millctl(service.config, "recipe", "run", str(bad))
@@ -73,7 +74,7 @@ def test_a_bad_recipe_is_refused_before_anything_moves(service):
         assert client.status().setpoint_rotary_rpm == 0.0
 
 
-def test_ctrl_c_once_pauses_twice_aborts_with_exit_2():
+def test_ctrl_c_once_pauses_twice_aborts_with_exit_2() -> None:
     with private_dir() as directory:
         fast_mill(directory)
         running = start_service(directory)
@@ -86,11 +87,12 @@ def test_ctrl_c_once_pauses_twice_aborts_with_exit_2():
             with running.client() as client:
                 wait_for(lambda: (p := client.recipe().progress) is not None and p.step == 2, 60, "the hold step")
                 proc.send_signal(signal.SIGINT)
-                wait_for(lambda: client.recipe().progress.state == "PAUSED", 10, "the pause")
+                wait_for(lambda: (p := client.recipe().progress) is not None and p.state == "PAUSED", 10, "the pause")
                 proc.send_signal(signal.SIGINT)
-                out, err = proc.communicate(timeout=60)
+                out, err = proc.communicate(timeout=stretched(60.0))
                 assert proc.returncode == 2, err
-                assert client.recipe().progress.state == "ABORTED"
+                progress = client.recipe().progress
+                assert progress is not None and progress.state == "ABORTED"
                 assert "ABORTED" in out
         finally:
             if proc.poll() is None:
@@ -98,7 +100,7 @@ def test_ctrl_c_once_pauses_twice_aborts_with_exit_2():
             running.stop()
 
 
-def test_run_record_is_complete_up_to_a_sigkill():
+def test_run_record_is_complete_up_to_a_sigkill() -> None:
     with private_dir() as directory:
         fast_mill(directory)
         running = start_service(directory)
@@ -106,8 +108,10 @@ def test_run_record_is_complete_up_to_a_sigkill():
             result = run_millctl(running.config, "recipe", "run", "--detach", str(recipe(directory, hold_s=120.0)))
             assert result.returncode == 0, result.stderr
             with running.client() as client:
-                wait_for(lambda: client.recipe().progress.step == 2, 60, "the hold step")
-                path = client.recipe().progress.record
+                wait_for(lambda: (p := client.recipe().progress) is not None and p.step == 2, 60, "the hold step")
+                progress = client.recipe().progress
+                assert progress is not None
+                path = progress.record
         finally:
             running.stop(signal.SIGKILL)
         records = list(read_records(path))  # every line parses

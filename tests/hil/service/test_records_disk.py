@@ -14,6 +14,7 @@ import sys
 
 import pytest
 
+from tests.support.pace import stretched
 from tests.support.service import REPO, private_dir
 
 
@@ -29,7 +30,7 @@ def test_a_full_records_disk_keeps_the_mill_controlled_says_so_and_damages_nothi
     with private_dir() as directory:
         done = subprocess.run(
             ["unshare", "-rm", sys.executable, "-m", "tests.support.disk_full", str(directory)],
-            cwd=REPO, capture_output=True, text=True, timeout=300, check=False,
+            cwd=REPO, capture_output=True, text=True, timeout=stretched(300.0), check=False,
         )
         assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     seen = json.loads(done.stdout.strip().splitlines()[-1])

@@ -2,15 +2,13 @@
 
 arm → set speeds → an over-limit value refused in the dialog with the
 interlock's reason and nothing sent → a valid set → quitting while running
-asks first → an injected vibration stall trips → the banner shows the first
+asks first → a vibration stall injected from the drill dialog (f) trips → the banner shows the first
 cause and what to do → reset; and E-stop from inside a dialog.
 """
 
 from __future__ import annotations
 
 import contextlib
-import signal
-import time
 from typing import Any
 
 import pytest
@@ -18,7 +16,10 @@ from textual.widgets import Input, Static
 
 from millctl.api import StatusOut
 from millctl.tui import MillApp
-from millctl.tui.modals import ConfirmModal, RecipeModal, SetpointsModal
+from millctl.tui.drill import FaultDrillModal
+from millctl.tui.modals import ConfirmModal, SetpointsModal
+from millctl.tui.recipes import RecipePicker
+from tests.support.pace import Deadline
 from tests.support.tui import Service, until
 
 SIZE = (120, 40)
@@ -94,8 +95,13 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
         await until(pilot, lambda: not isinstance(app.screen, ConfirmModal), "the question to close")
         assert app.is_running
 
-        # a vibration stall trips; the banner shows the first cause and the way out
-        fault_service.proc.send_signal(signal.SIGUSR1)  # a SimFault VIB_STALL frame on the service's bus
+        # the instructor's drill (serve --fault-injection): f opens the faults, Enter injects the highlighted
+        # first one, a vibration stall; it trips, and the banner shows the first cause and the way out
+        await until(pilot, lambda: app.drills_allowed, "the service's fault injection to be known")
+        await pilot.press("f")
+        await until(pilot, lambda: isinstance(app.screen, FaultDrillModal), "the fault drill dialog")
+        await pilot.pause(0.2)
+        await pilot.press("enter")
         await until(pilot, lambda: app.state == "TRIPPED", "the trip", timeout_s=30.0)
         banner = app.query_one("#trip", Static)
         assert banner.has_class("shown")
@@ -106,9 +112,15 @@ async def test_arm_set_refuse_trip_banner_and_reset(fault_service: Service) -> N
 
         # the recovery procedure: the controlled stop finishes, the cause is removed, standstill, reset
         await until(pilot, lambda: at_rest(app.status), "the end of the controlled stop", timeout_s=30.0)
-        fault_service.proc.send_signal(signal.SIGUSR2)  # SimFault CLEAR: the vibration rotor is free again
-        deadline = time.monotonic() + 30.0
-        while app.state != "DISABLED" and time.monotonic() < deadline:
+        await pilot.press("f")  # x clears every injected fault: the vibration rotor is free again
+        await until(pilot, lambda: isinstance(app.screen, FaultDrillModal), "the fault drill dialog")
+        await pilot.press("x")
+        await until(pilot, lambda: not isinstance(app.screen, FaultDrillModal), "the dialog to close")
+        with fault_service.client() as client:
+            assert [e.data["fault"] for e in client.events(limit=2000).events if e.kind == "drill"] == [
+                "VIB_STALL", "CLEAR"]
+        deadline = Deadline(30.0)  # waits for processes: stretches with load
+        while app.state != "DISABLED" and not deadline.expired():
             # as an operator would: reset at standstill, and again if it was refused (the freed rotor can
             # read a rpm or two for a moment after the clear: "reset refused: drives not at standstill")
             await until(pilot, lambda: at_rest(status_of(fault_service)), "standstill after the clear", timeout_s=30.0)
@@ -125,7 +137,7 @@ async def test_estop_works_inside_a_dialog(fault_service: Service) -> None:
     async with app.run_test(size=SIZE, notifications=True) as pilot:
         await until(pilot, lambda: app.online and app.state == "DISABLED", "the first status")
         await pilot.press("n")
-        await until(pilot, lambda: isinstance(app.screen, RecipeModal), "the recipe dialog")
+        await until(pilot, lambda: isinstance(app.screen, RecipePicker), "the recipe list")
         await pilot.press("ctrl+x")
         await until(pilot, lambda: app.state == "TRIPPED", "the E-stop trip")
         assert "E-stop" in status_of(fault_service).trip_cause

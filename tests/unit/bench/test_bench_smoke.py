@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -155,14 +156,14 @@ def test_levels_and_node_budget_structure() -> None:
         assert float(row[2]) == pytest.approx(run["tick_mean_s"] * 1e3, rel=5e-3)
 
 
-def test_cli_renders_a_saved_results_file(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_cli_renders_a_saved_results_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "r.json"
     path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine()}))
     assert cli.main(["--from-json", str(path)]) == 0
     assert capsys.readouterr().out.startswith("# Benchmarks")
 
 
-def test_safety_piece_says_why_it_did_not_run(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_safety_piece_says_why_it_did_not_run(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     from bench import safety_timing
 
     monkeypatch.setattr(safety_timing, "SUITE", tmp_path / "absent.py")
@@ -174,7 +175,7 @@ def test_safety_piece_says_why_it_did_not_run(monkeypatch: pytest.MonkeyPatch, t
     assert "Not measured: not there" in text and "Measured: not run (no netns)" in text
 
 
-def test_millctl_bench_is_an_alias(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_millctl_bench_is_an_alias(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from millctl.cli import main as millctl_main
 
     path = tmp_path / "r.json"
@@ -186,7 +187,7 @@ def test_millctl_bench_is_an_alias(tmp_path, capsys) -> None:  # type: ignore[no
 def test_study_section_reports_points_and_events_per_core() -> None:
     from bench import study
 
-    def run(points: int, events: int, workers: int, elapsed: float, name: str) -> dict:
+    def run(points: int, events: int, workers: int, elapsed: float, name: str) -> dict[str, object]:
         return {
             "points": points, "events": events, "workers": workers, "backend": name, "elapsed_s": elapsed,
             "points_per_s": points / elapsed, "events_per_s": events / elapsed,

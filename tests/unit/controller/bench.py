@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import uuid
+from typing import TypeVar
 
 import can
 
@@ -21,6 +22,8 @@ from millctl.protocol import (
     Setpoints,
     default_codec,
 )
+
+M = TypeVar("M", bound=MillMessage)
 
 
 class ScriptedNode:
@@ -65,9 +68,8 @@ class ScriptedNode:
     def followed(self) -> dict[str, object]:
         """A node that did what it was told: the last setpoint as its speeds and heater, RUNNING while it is not
         zero."""
-        sent = [d.message for _, d in self.of(Setpoints)]
+        sent = self.messages(Setpoints)
         last = sent[-1] if sent else Setpoints(0.0, 0.0, 25.0, False)
-        assert isinstance(last, Setpoints)
         moving = last.rotary_rpm > 0.0 or last.vibration_rpm > 0.0
         return {"state": NodeState.RUNNING if moving else NodeState.ARMED, "rotary_rpm": last.rotary_rpm,
                 "vibration_rpm": last.vibration_rpm, "setpoint_c": last.furnace_c, "heater_on": last.heater_on}
@@ -91,3 +93,9 @@ class ScriptedNode:
 
     def of(self, kind: type[MillMessage]) -> list[tuple[float, Decoded]]:
         return [(t, d) for t, d in self.sent if d.kind is kind]
+
+    def messages(self, kind: type[M]) -> list[M]:
+        """The messages of ``kind`` the controller sent, in order (each must have decoded whole)."""
+        found = [d.message for _, d in self.sent if d.kind is kind]
+        assert all(isinstance(m, kind) for m in found), f"a {kind.__name__} frame the controller sent did not decode"
+        return [m for m in found if isinstance(m, kind)]

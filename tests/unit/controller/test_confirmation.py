@@ -5,8 +5,11 @@ Issue 15 items 2 and 5 (docs/safety.md#every-command-confirmed, #believe-only-wh
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused, ControllerState, EventKind
 from millctl.protocol import Command, CommandCode, EStop, NodeState
 from millctl.safety import InterlockRefused
@@ -16,14 +19,14 @@ S = ControllerState
 
 
 @pytest.fixture
-def bench(config):
+def bench(config: MillConfig) -> Iterator[ScriptedNode]:
     b = ScriptedNode(config)
     yield b
     b.close()
 
 
 def sent_commands(bench: ScriptedNode, code: CommandCode) -> int:
-    return [d.message for _, d in bench.of(Command)].count(Command(code))
+    return bench.messages(Command).count(Command(code))
 
 
 def running(bench: ScriptedNode, rotary_rpm: float = 100.0, vibration_rpm: float = 400.0) -> None:
@@ -35,7 +38,9 @@ def running(bench: ScriptedNode, rotary_rpm: float = 100.0, vibration_rpm: float
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
 
 
-def test_an_arm_the_node_never_confirms_is_repeated_then_trips_naming_it(bench, config):
+def test_an_arm_the_node_never_confirms_is_repeated_then_trips_naming_it(
+    bench: ScriptedNode, config: MillConfig
+) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     bench.controller.arm()
     bench.run(config.interlock.command_confirm_s - 0.05, state=NodeState.DISABLED)
@@ -45,9 +50,10 @@ def test_an_arm_the_node_never_confirms_is_repeated_then_trips_naming_it(bench, 
     bench.run(0.1, state=NodeState.DISABLED)
     assert bench.controller.state is S.TRIPPED
     assert "ARM" in bench.controller.trip_cause and "not confirmed" in bench.controller.trip_cause
+    assert f"after {sent_commands(bench, CommandCode.ARM)} send(s)" in bench.controller.trip_cause
 
 
-def test_a_confirmed_command_is_not_repeated(bench):
+def test_a_confirmed_command_is_not_repeated(bench: ScriptedNode) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     bench.controller.arm()
     bench.run(2.0, state=NodeState.ARMED)
@@ -55,14 +61,14 @@ def test_a_confirmed_command_is_not_repeated(bench):
     assert sent_commands(bench, CommandCode.ARM) == 1
 
 
-def test_a_node_that_arms_uncommanded_trips(bench):
+def test_a_node_that_arms_uncommanded_trips(bench: ScriptedNode) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     bench.run(0.2, state=NodeState.ARMED)  # nobody sent ARM
     assert bench.controller.state is S.TRIPPED
     assert "DISABLED → ARMED" in bench.controller.trip_cause
 
 
-def test_a_node_that_does_not_take_its_setpoints_trips(bench):
+def test_a_node_that_does_not_take_its_setpoints_trips(bench: ScriptedNode) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     bench.controller.arm()
     bench.run(0.2, state=NodeState.ARMED)
@@ -73,14 +79,14 @@ def test_a_node_that_does_not_take_its_setpoints_trips(bench):
     assert "did not take its setpoints" in bench.controller.trip_cause
 
 
-def test_a_drive_faster_than_commanded_trips(bench):
+def test_a_drive_faster_than_commanded_trips(bench: ScriptedNode) -> None:
     running(bench)
     bench.run(0.2, state=NodeState.RUNNING, rotary_rpm=100.0, vibration_rpm=430.0)  # inside the envelope
     assert bench.controller.state is S.TRIPPED
     assert "is not what was commanded" in bench.controller.trip_cause
 
 
-def test_stopping_has_a_deadline(bench):
+def test_stopping_has_a_deadline(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.stop()
     bound_s = bench.controller.expectation.stop_bound_s
@@ -92,7 +98,7 @@ def test_stopping_has_a_deadline(bench):
     assert any(d.kind is EStop for _, d in bench.sent)
 
 
-def test_a_drive_that_does_not_slow_down_in_stopping_is_an_estop(bench):
+def test_a_drive_that_does_not_slow_down_in_stopping_is_an_estop(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.stop()
     bench.run(bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0,
@@ -101,7 +107,7 @@ def test_a_drive_that_does_not_slow_down_in_stopping_is_an_estop(bench):
     assert "stop ceiling" in bench.controller.trip_cause and "E-stop" in bench.controller.trip_cause
 
 
-def test_the_envelope_is_checked_in_stopping(bench, config):
+def test_the_envelope_is_checked_in_stopping(bench: ScriptedNode, config: MillConfig) -> None:
     running(bench, 180.0, 800.0)
     bench.controller.stop()
     for _ in range(config.interlock.debounce_samples):
@@ -111,7 +117,7 @@ def test_the_envelope_is_checked_in_stopping(bench, config):
     assert "measured speeds outside the envelope" in bench.controller.trip_cause
 
 
-def test_the_heating_rate_is_checked(bench):
+def test_the_heating_rate_is_checked(bench: ScriptedNode) -> None:
     running(bench)
     with pytest.raises(InterlockRefused, match=r"heating rate 1000\.0 °C/min must be in"):
         bench.controller.set_furnace(200.0, rate_c_per_min=1000.0)
@@ -120,7 +126,7 @@ def test_the_heating_rate_is_checked(bench):
     assert bench.controller.furnace_target_c == 200.0
 
 
-def test_disarm_needs_both_setpoints_at_standstill(bench):
+def test_disarm_needs_both_setpoints_at_standstill(bench: ScriptedNode) -> None:
     bench.run(0.2, state=NodeState.DISABLED)
     bench.controller.arm()
     bench.run(0.2, state=NodeState.ARMED)
@@ -130,7 +136,7 @@ def test_disarm_needs_both_setpoints_at_standstill(bench):
     assert sent_commands(bench, CommandCode.DISARM) == 0
 
 
-def test_an_e2e_faulted_node_link_trips(bench, config):
+def test_an_e2e_faulted_node_link_trips(bench: ScriptedNode, config: MillConfig) -> None:
     from millctl.protocol import NodeStatus
 
     bench.run(0.2, state=NodeState.DISABLED)
@@ -143,7 +149,7 @@ def test_an_e2e_faulted_node_link_trips(bench, config):
     assert "NodeStatus E2E error score" in bench.controller.trip_cause
 
 
-def test_every_escalation_is_recorded(bench):
+def test_every_escalation_is_recorded(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.stop()
     bench.run(bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0,
@@ -152,11 +158,11 @@ def test_every_escalation_is_recorded(bench):
     assert trips and trips[0].message.startswith("E-stop:")
 
 
-def test_a_reset_forgets_the_debounce_counts(config):
+def test_a_reset_forgets_the_debounce_counts(config: MillConfig) -> None:
     """After reset, a trip needs the full debounce count again (kills the reset mutants of both monitors)."""
     from millctl.controller.expect import SpeedExpectation
     from millctl.controller.monitor import MeasuredSpeedMonitor
-    from millctl.safety import STANDSTILL, Envelope, RampPlanner
+    from millctl.safety import STANDSTILL, Envelope, RampPlanner, SpeedPoint
 
     envelope = Envelope.from_config(config)
     n = config.interlock.debounce_samples
@@ -171,3 +177,10 @@ def test_a_reset_forgets_the_debounce_counts(config):
     assert monitor.outside_in_a_row == 0 and expectation.outside_in_a_row == 0
     assert monitor.update(260.0, 800.0) is None  # one outside sample after the reset does not trip
     assert expectation.check(0.0, 50.0, 0.0) is None
+    # a drive at rest though commanded to turn counts a whole window from after the reset
+    expectation.commanded(10.0, SpeedPoint(0.0, 400.0))
+    expectation.commanded(12.5, SpeedPoint(0.0, 400.0))
+    expectation.check(12.5, 0.0, 0.0)
+    expectation.reset()
+    assert expectation.check(13.0, 0.0, 0.0) is None
+    assert expectation.check(15.0, 0.0, 0.0) is not None

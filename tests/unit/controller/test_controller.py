@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused, ControllerState, EventKind
 from millctl.protocol import Command, CommandCode, Heartbeat, NodeState, Setpoints
 from millctl.safety import InterlockRefused
@@ -13,7 +16,7 @@ S = ControllerState
 
 
 @pytest.fixture
-def bench(config):
+def bench(config: MillConfig) -> Iterator[ScriptedNode]:
     b = ScriptedNode(config)
     yield b
     b.close()
@@ -27,7 +30,7 @@ def armed(bench: ScriptedNode) -> ScriptedNode:
     return bench
 
 
-def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench):
+def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench: ScriptedNode) -> None:
     bench.run(1.0)
     beats = bench.of(Heartbeat)
     assert len(beats) == 20
@@ -39,41 +42,41 @@ def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench):
     assert len(bench.of(Heartbeat)) == 20
 
 
-def test_connects_when_the_node_is_seen(bench):
+def test_connects_when_the_node_is_seen(bench: ScriptedNode) -> None:
     assert bench.controller.state is S.DISCONNECTED
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED
 
 
-def test_arm_sends_command_and_follows_node(bench):
+def test_arm_sends_command_and_follows_node(bench: ScriptedNode) -> None:
     armed(bench)
-    assert [d.message for _, d in bench.of(Command)] == [Command(CommandCode.ARM)]
+    assert bench.messages(Command) == [Command(CommandCode.ARM)]
 
 
-def test_over_limit_setpoint_refused_and_nothing_sent(bench):
+def test_over_limit_setpoint_refused_and_nothing_sent(bench: ScriptedNode) -> None:
     armed(bench)
     with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm"):
         bench.controller.set_speeds(250.0, 800.0)
     bench.run(0.5, state=NodeState.ARMED)
-    sent = [d.message for _, d in bench.of(Setpoints)]
+    sent = bench.messages(Setpoints)
     assert sent, "the controller sends its (standstill) setpoints while ARMED"
     assert all(m.rotary_rpm == 0.0 and m.vibration_rpm == 0.0 for m in sent)
     assert any(e.kind is EventKind.REFUSAL and "250.0 rpm" in e.message for e in bench.events)
 
 
-def test_setpoints_follow_the_planned_ramp_at_10_hz(bench):
+def test_setpoints_follow_the_planned_ramp_at_10_hz(bench: ScriptedNode) -> None:
     armed(bench)
     move = bench.controller.set_speeds(180.0, 800.0)
     bench.run(move.duration_s + 0.5, follow=True)
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
-    sent = [d.message for _, d in bench.of(Setpoints)]
+    sent = bench.messages(Setpoints)
     assert sent[-1].rotary_rpm == 180.0 and sent[-1].vibration_rpm == 800.0
     for m in sent:  # every sent pair is inside
         assert bench.controller.envelope.check(m.rotary_rpm, m.vibration_rpm).ok
     assert len(sent) == pytest.approx((0.4 + move.duration_s + 0.5) * 10, abs=2)
 
 
-def test_commands_refused_in_the_wrong_state(bench):
+def test_commands_refused_in_the_wrong_state(bench: ScriptedNode) -> None:
     with pytest.raises(CommandRefused, match="arm is not possible in state DISCONNECTED"):
         bench.controller.arm()
     bench.run(0.2, state=NodeState.DISABLED)
@@ -81,7 +84,7 @@ def test_commands_refused_in_the_wrong_state(bench):
         bench.controller.set_speeds(10.0, 100.0)
 
 
-def test_measured_outside_trips_after_debounce(bench, config):
+def test_measured_outside_trips_after_debounce(bench: ScriptedNode, config: MillConfig) -> None:
     armed(bench)
     move = bench.controller.set_speeds(180.0, 800.0)
     bench.run(move.duration_s + 0.5, follow=True)
@@ -93,17 +96,17 @@ def test_measured_outside_trips_after_debounce(bench, config):
         bench.collect()
     assert bench.controller.state is S.TRIPPED
     assert "measured speeds outside the envelope for 3 samples" in bench.controller.trip_cause
-    assert Command(CommandCode.STOP) in [d.message for _, d in bench.of(Command)]
+    assert Command(CommandCode.STOP) in bench.messages(Command)
 
 
-def test_a_single_outlier_does_not_trip(bench):
+def test_a_single_outlier_does_not_trip(bench: ScriptedNode) -> None:
     armed(bench)
     bench.alive(NodeState.ARMED, rotary_rpm=260.0, vibration_rpm=800.0)
     bench.run(0.5, state=NodeState.ARMED)
     assert bench.controller.state is S.ARMED
 
 
-def test_stale_telemetry_trips_and_latches(bench):
+def test_stale_telemetry_trips_and_latches(bench: ScriptedNode) -> None:
     armed(bench)
     bench.run(2.0)  # the node falls silent
     assert bench.controller.state is S.TRIPPED
@@ -114,7 +117,7 @@ def test_stale_telemetry_trips_and_latches(bench):
         bench.controller.set_speeds(10.0, 100.0)
 
 
-def test_node_fault_trips_with_its_cause(bench):
+def test_node_fault_trips_with_its_cause(bench: ScriptedNode) -> None:
     from millctl.protocol import FaultCode, FaultFlag, NodeStatus
 
     armed(bench)
@@ -123,7 +126,7 @@ def test_node_fault_trips_with_its_cause(bench):
     assert bench.controller.state is S.TRIPPED and "STALL" in bench.controller.trip_cause
 
 
-def test_reset_needs_standstill_and_fresh_telemetry(bench):
+def test_reset_needs_standstill_and_fresh_telemetry(bench: ScriptedNode) -> None:
     armed(bench)
     bench.run(2.0)
     assert bench.controller.state is S.TRIPPED
@@ -134,12 +137,12 @@ def test_reset_needs_standstill_and_fresh_telemetry(bench):
     bench.run(0.2, state=NodeState.FAULT)
     bench.controller.reset()
     bench.collect()
-    assert Command(CommandCode.RESET) in [d.message for _, d in bench.of(Command)]
+    assert Command(CommandCode.RESET) in bench.messages(Command)
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED
 
 
-def test_node_restart_mid_run_trips(bench):
+def test_node_restart_mid_run_trips(bench: ScriptedNode) -> None:
     armed(bench)
     bench.controller.set_speeds(100.0, 400.0)
     bench.run(0.5, state=NodeState.RUNNING)
@@ -148,26 +151,53 @@ def test_node_restart_mid_run_trips(bench):
     assert "restarted" in bench.controller.trip_cause
 
 
-def test_every_state_change_has_a_reason(bench):
+def test_every_state_change_has_a_reason(bench: ScriptedNode) -> None:
     armed(bench)
     changes = [e for e in bench.events if e.kind is EventKind.STATE]
     assert [e.data["target_state"] for e in changes] == ["DISABLED", "ARMED"]
     assert all(e.data["reason"] for e in changes)
 
 
-def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench):
+def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench: ScriptedNode) -> None:
     armed(bench)
     bench.controller.estop()
     bench.controller.reset()  # the node has not reported FAULT yet: nothing to send so far
     bench.collect()
-    assert Command(CommandCode.RESET) not in [d.message for _, d in bench.of(Command)]
+    assert Command(CommandCode.RESET) not in bench.messages(Command)
     bench.run(0.2, state=NodeState.FAULT)
-    assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.RESET)) == 1
+    assert bench.messages(Command).count(Command(CommandCode.RESET)) == 1
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED
 
 
-def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench):
+def test_a_completed_reset_is_confirmed_once_and_not_sent_again(bench: ScriptedNode) -> None:
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+    bench.run(2.0, state=NodeState.DISABLED)  # past the confirmation bound: nothing pending, nothing lost
+    assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
+    assert bench.messages(Command).count(Command(CommandCode.RESET)) == 1
+
+
+def test_a_node_disabled_with_a_fault_still_latched_has_not_confirmed_the_reset(bench: ScriptedNode) -> None:
+    from millctl.protocol import DriveTelemetry, FaultFlag, FurnaceTelemetry, NodeStatus
+
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    for _ in range(10):  # 0.5 s of DISABLED with the WATCHDOG bit still set
+        bench.say(NodeStatus(NodeState.DISABLED, FaultFlag.WATCHDOG))
+        bench.say(DriveTelemetry(0.0, 0.0))
+        bench.say(FurnaceTelemetry(25.0, 25.0, 0.0, False))
+        bench.run(0.05)
+    assert bench.messages(Command).count(Command(CommandCode.RESET)) >= 2  # still pending: sent again
+
+
+def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench: ScriptedNode) -> None:
     armed(bench)
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
@@ -189,7 +219,7 @@ def _without_furnace(bench: ScriptedNode, seconds: float) -> None:
         bench.clock.advance(0.01)
 
 
-def test_start_up_waits_for_every_stream_before_judging_staleness(bench):
+def test_start_up_waits_for_every_stream_before_judging_staleness(bench: ScriptedNode) -> None:
     """Issue 15 item 9: a stream that starts later than NodeStatus is not 'stale: never received' at start."""
     _without_furnace(bench, 0.5)
     assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
@@ -197,7 +227,7 @@ def test_start_up_waits_for_every_stream_before_judging_staleness(bench):
     assert bench.controller.state is S.DISABLED, bench.controller.trip_cause
 
 
-def test_a_stream_that_never_comes_is_a_fault_after_the_start_up_grace(bench, config):
+def test_a_stream_that_never_comes_is_a_fault_after_the_start_up_grace(bench: ScriptedNode, config: MillConfig) -> None:
     grace_s = config.interlock.startup_grace_s
     _without_furnace(bench, grace_s - 0.1)
     assert bench.controller.state is S.DISABLED

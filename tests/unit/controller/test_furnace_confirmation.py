@@ -6,8 +6,11 @@ state and setpoint given, or (``follow``) those of the last Setpoints frame.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import ControllerState
 from millctl.controller.furnace_expect import FurnaceExpectation
 from millctl.protocol import EStop, FurnaceTelemetry, NodeState, Setpoints
@@ -17,7 +20,7 @@ S = ControllerState
 
 
 @pytest.fixture
-def bench(config):
+def bench(config: MillConfig) -> Iterator[ScriptedNode]:
     b = ScriptedNode(config)
     yield b
     b.close()
@@ -36,7 +39,7 @@ def heater_frames(bench: ScriptedNode) -> list[Setpoints]:
     return [d.message for _, d in bench.of(Setpoints) if isinstance(d.message, Setpoints) and d.message.heater_on]
 
 
-def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench):
+def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(30.0)
     bench.run(17.0, follow=True)  # 5 °C at 20 °C/min: 15 s up, then held
@@ -49,7 +52,7 @@ def test_a_furnace_target_the_node_follows_up_and_down_never_trips(bench):
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
 
 
-def test_a_heater_the_node_turns_on_uncommanded_trips(bench, config):
+def test_a_heater_the_node_turns_on_uncommanded_trips(bench: ScriptedNode, config: MillConfig) -> None:
     running(bench)
     bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0, setpoint_c=200.0, heater_on=True)
     assert bench.controller.state is S.TRIPPED
@@ -58,7 +61,7 @@ def test_a_heater_the_node_turns_on_uncommanded_trips(bench, config):
     assert f"{config.interlock.debounce_samples} reports in a row" in cause
 
 
-def test_a_furnace_setpoint_above_the_one_commanded_trips(bench):
+def test_a_furnace_setpoint_above_the_one_commanded_trips(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     bench.run(3.0, follow=True)
@@ -72,7 +75,7 @@ def test_a_furnace_setpoint_above_the_one_commanded_trips(bench):
     assert f"heater on at {top + 5.0:.1f} °C" in bench.controller.trip_cause
 
 
-def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench):
+def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     window_s = bench.controller.furnace_expectation.window_s
@@ -81,10 +84,11 @@ def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench)
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
     bench.run(0.5, state=NodeState.RUNNING, rotary_rpm=60.0, vibration_rpm=300.0)
     assert bench.controller.state is S.TRIPPED
-    assert "did not take its furnace target" in bench.controller.trip_cause
+    cause = bench.controller.trip_cause
+    assert cause.startswith("node reports heater off, which is not") and "did not take its furnace target" in cause
 
 
-def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
+def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)
     bench.run(5.0, follow=True)
@@ -93,7 +97,7 @@ def test_a_setpoint_under_the_lowest_commanded_is_a_target_not_taken(bench):
     assert "did not take its furnace target" in bench.controller.trip_cause
 
 
-def test_a_heater_on_after_a_trip_is_an_estop(bench):
+def test_a_heater_on_after_a_trip_is_an_estop(bench: ScriptedNode) -> None:
     running(bench)
     bench.run(0.2, state=NodeState.FAULT)
     assert bench.controller.state is S.TRIPPED
@@ -112,7 +116,8 @@ def test_a_heater_commanded_off_in_part_of_the_window_bounds_only_from_above() -
     off = FurnaceTelemetry(25.0, 25.0, 0.0, False)
     assert expect.check(1.9, off) is None  # not commanded on for a whole window yet
     assert expect.check(1.9, FurnaceTelemetry(25.0, 50.0, 10.0, True)) is None
-    assert expect.check(1.9, FurnaceTelemetry(25.0, 50.2, 10.0, True)) is not None
+    reason = expect.check(1.9, FurnaceTelemetry(25.0, 50.2, 10.0, True))
+    assert reason is not None and "(heater off or on at up to 50.0 °C over the last 1.0 s" in reason
     expect.reset()
     for k in range(20, 31):
         expect.commanded(k * 0.1, 50.0)
@@ -125,3 +130,39 @@ def test_a_heater_commanded_off_in_part_of_the_window_bounds_only_from_above() -
 def test_nothing_is_judged_before_anything_was_commanded() -> None:
     expect = FurnaceExpectation(window_s=1.0, debounce_samples=1)
     assert expect.check(0.0, FurnaceTelemetry(25.0, 500.0, 100.0, True)) is None
+
+
+def test_heat_nobody_commanded_counts_from_the_first_report_and_again_after_a_reset() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=3)
+    expect.commanded(0.0, None)
+    on = FurnaceTelemetry(25.0, 80.0, 50.0, True)
+    for _ in range(2):
+        assert expect.check(0.1, on) is None and expect.check(0.2, on) is None
+        assert expect.check(0.3, on) is not None
+        expect.reset()
+
+
+def test_a_target_not_taken_counts_from_the_first_report_of_a_fresh_expectation() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=3)
+    for k in range(11):
+        expect.commanded(k * 0.1, 50.0)
+    off = FurnaceTelemetry(25.0, 25.0, 0.0, False)
+    assert expect.check(1.0, off) is None
+    expect.commanded(2.0, 50.0)
+    assert expect.check(2.0, off) is not None
+
+
+def test_a_target_commanded_for_less_than_a_window_is_not_yet_expected() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=3)
+    off = FurnaceTelemetry(25.0, 25.0, 0.0, False)
+    for k in range(16):
+        expect.commanded(k * 0.1, 50.0)
+        assert expect.check(k * 0.1, off) is None  # on throughout only from t = 1.0: below counts from there
+
+
+def test_the_latest_target_at_an_instant_replaces_the_earlier() -> None:
+    expect = FurnaceExpectation(window_s=1.0, debounce_samples=1)
+    expect.commanded(0.0, None)
+    expect.commanded(1.0, 80.0)
+    expect.commanded(1.0, 50.0)  # revised within the same tick: 80 °C was never sent
+    assert expect.check(1.0, FurnaceTelemetry(25.0, 80.0, 50.0, True)) is not None

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from millctl.clock import ManualClock
-from millctl.controller.states import ControllerState, IllegalTransition, StateMachine
+from millctl.controller.states import ControllerState, IllegalTransition, StateMachine, Transition
 
 S = ControllerState
 Path = tuple[ControllerState, ...]
@@ -50,43 +50,43 @@ def shortest_paths(avoid: frozenset[ControllerState] = frozenset()) -> dict[Cont
     return paths
 
 
-def test_every_state_is_reachable_from_disconnected():
+def test_every_state_is_reachable_from_disconnected() -> None:
     assert set(shortest_paths()) == set(S)
 
 
-def test_a_trip_is_possible_from_every_state_but_tripped():
+def test_a_trip_is_possible_from_every_state_but_tripped() -> None:
     for state, path in shortest_paths().items():
         assert (S.TRIPPED in moves_after(path)) == (state is not S.TRIPPED), state
 
 
-def test_tripped_latches_only_reset_to_disabled_leaves_it():
+def test_tripped_latches_only_reset_to_disabled_leaves_it() -> None:
     assert moves_after(shortest_paths()[S.TRIPPED]) == {S.DISABLED}
 
 
-def test_nothing_moves_before_arm():
+def test_nothing_moves_before_arm() -> None:
     """Without passing ARMED, neither RUNNING nor STOPPING can be reached (safe by default)."""
     assert set(shortest_paths(avoid=frozenset({S.ARMED}))) == {S.DISCONNECTED, S.DISABLED, S.TRIPPED}
 
 
-def test_the_node_must_be_seen_first():
+def test_the_node_must_be_seen_first() -> None:
     """From DISCONNECTED only "node seen" (DISABLED) or a trip."""
     assert moves_after(()) == {S.DISABLED, S.TRIPPED}
 
 
-def test_running_stops_only_through_stopping_or_a_trip():
+def test_running_stops_only_through_stopping_or_a_trip() -> None:
     """A running mill is never disarmed in one step: it ramps down (STOPPING) or trips."""
     assert moves_after(shortest_paths()[S.RUNNING]) == {S.STOPPING, S.TRIPPED}
 
 
-def test_illegal_move_names_the_allowed_ones():
+def test_illegal_move_names_the_allowed_ones() -> None:
     sm = StateMachine(ManualClock().now)
     with pytest.raises(IllegalTransition, match="cannot go from DISCONNECTED to RUNNING"):
         sm.go(S.RUNNING, "test")
 
 
-def test_transitions_are_recorded_with_reason_and_time():
+def test_transitions_are_recorded_with_reason_and_time() -> None:
     clock = ManualClock()
-    seen = []
+    seen: list[Transition] = []
     sm = StateMachine(clock.now, seen.append)
     sm.go(S.DISABLED, "node seen")
     clock.advance(1.5)

@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
-from millctl.config import CamShape, LimitLaw
+from collections.abc import Callable
+
+from millctl.config import CamShape, LimitLaw, MillConfig
 from millctl.protocol import PhysicsTelemetry, RefusalCode, Setpoints
 from millctl.studies.cams import with_cam
 
 from .conftest import Bench
 
 
-def _corrected_every_phase(config, shape):
+def _corrected_every_phase(config: MillConfig, shape: CamShape) -> MillConfig:
     cfg = with_cam(config, shape)
     interlock = cfg.interlock.model_copy(update={"law": LimitLaw.CORRECTED_EVERY_PHASE})
     return cfg.model_copy(update={"interlock": interlock})
 
 
-def test_double_cam_node_refuses_what_the_single_cam_node_allows(make_bench, config):
+def test_double_cam_node_refuses_what_the_single_cam_node_allows(
+    make_bench: Callable[..., Bench], config: MillConfig
+) -> None:
     single: Bench = make_bench(_corrected_every_phase(config, CamShape.SINGLE))
     double: Bench = make_bench(_corrected_every_phase(config, CamShape.DOUBLE))
     # at ω_v = 400 rpm the corrected every-phase limit is ≈ 202 rpm with the circular cam and ≈ 119 rpm with
@@ -32,7 +36,7 @@ def test_double_cam_node_refuses_what_the_single_cam_node_allows(make_bench, con
     assert double.node.refused_setpoints == 1 and double.node.last_refusal is RefusalCode.ENVELOPE
 
 
-def test_double_cam_node_reports_the_lift_physics(make_bench, config):
+def test_double_cam_node_reports_the_lift_physics(make_bench: Callable[..., Bench], config: MillConfig) -> None:
     bench: Bench = make_bench(with_cam(config, CamShape.DOUBLE), physics_worker="inline")
     reference: Bench = make_bench(config, physics_worker="inline")
     assert bench.node.physics.model.cam is CamShape.DOUBLE

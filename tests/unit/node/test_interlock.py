@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -42,6 +44,18 @@ def test_safety_4_absolute_speed_and_temperature_limits(bench: Bench) -> None:
     assert bench.node.state is NodeState.ARMED
 
 
+def test_safety_4_a_rotor_over_its_drives_maximum_is_refused_speed_limit_where_the_law_allows_more(
+    make_bench: Callable[..., Bench], config: MillConfig
+) -> None:
+    """Where the drive's own maximum is below the law's limit, exceeding it is SPEED_LIMIT, not ENVELOPE."""
+    rotary = config.drives.rotary.model_copy(update={"max_speed_rpm": 150.0})
+    cfg = config.model_copy(update={"drives": config.drives.model_copy(update={"rotary": rotary})})
+    bench: Bench = make_bench(cfg)
+    assert float(bench.envelope.omega_r_limit_rpm(800.0)) == 150.0  # the law alone would allow ≈ 190 rpm
+    bench.run_at(140.0, 800.0)
+    assert _refused(bench, Setpoints(155.0, 800.0, 25.0, False)) is RefusalCode.SPEED_LIMIT
+
+
 def test_safety_12_a_raw_jump_is_refused_accel_limit(bench: Bench) -> None:
     bench.arm()
     target = Setpoints(180.0, 800.0, 25.0, False)
@@ -78,6 +92,26 @@ def test_safety_12_a_fast_forger_cannot_walk_the_setpoint_faster_than_the_drives
             assert v2 - v1 <= burst + 1.5 * accel * (t2 - t1) + 1e-6, f"{v2 - v1:.1f} rpm in {t2 - t1:.2f} s"
     # the slowest honest sender (one frame per setpoint period) gets as far as the fast one
     assert accepted[-1][1] >= 1.5 * accel * 0.9
+
+
+def test_safety_12_the_largest_single_step_is_the_burst(bench: Bench) -> None:
+    """From rest, one frame may step a drive by 1.5 × max accel × watchdog_timeout_s + 0.2 rpm, not 0.1 rpm more."""
+    bench.arm()
+    burst = 1.5 * bench.config.drives.vibration.max_accel_rpm_s * bench.config.timing.watchdog_timeout_s + 0.2
+    assert _refused(bench, Setpoints(0.0, round(burst + 0.1, 1), 25.0, False)) is RefusalCode.ACCEL_LIMIT
+    bench.send(Setpoints(0.0, round(burst, 1), 25.0, False))
+    bench.step(bench.tick_s)
+    assert bench.node.last_setpoint == Setpoints(0.0, round(burst, 1), 25.0, False)
+
+
+def test_a_heater_off_frame_is_not_judged_by_its_unused_furnace_setpoint(bench: Bench) -> None:
+    bench.arm()
+    unused_c = bench.config.furnace.max_setpoint_c + 100.0
+    bench.send(Setpoints(0.0, 10.0, unused_c, False))
+    bench.step(bench.tick_s)
+    assert bench.node.refused_setpoints == 0
+    assert bench.node.last_setpoint == Setpoints(0.0, 10.0, unused_c, False)
+    assert not bench.node.heater_on
 
 
 def test_safety_12_the_controllers_sampled_ramp_passes(bench: Bench) -> None:

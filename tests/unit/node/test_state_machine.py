@@ -88,6 +88,26 @@ def test_stop_command_plans_a_controlled_stop_inside_the_envelope(bench: Bench) 
     assert outside == []
 
 
+def test_the_nodes_stop_slows_the_rotor_at_its_drives_rate_then_vibration_once_the_rotor_has_settled(
+    bench: Bench,
+) -> None:
+    """Stop category 1: the rotor is ramped down at its maximum deceleration, not dropped; ω_v is lowered only
+    after a dwell of 3 time constants, when the rotor has followed its ramp to rest (docs/operations.md)."""
+    rotary = bench.config.drives.rotary
+    bench.run_at(180.0, 800.0)
+    bench.command(CommandCode.STOP)
+    samples: list[tuple[float, tuple[float, float]]] = []
+    bench.on_tick.append(lambda b: samples.append((b.clock.now(), b.node.true_speeds_rpm)))
+    bench.step(14.0)  # 4.5 s of ω_r, 0.6 s of dwell, 6.7 s of ω_v
+    t0 = samples[0][0]
+    for t, (r, _) in samples:
+        assert r >= 180.0 - 1.1 * rotary.max_accel_rpm_s * (t - t0) - 2.0, f"ω_r = {r:.1f} rpm {t - t0:.2f} s in"
+    lag_rpm = rotary.max_accel_rpm_s * rotary.time_constant_s  # the rotor's lag behind its ramp
+    r_when_v_falls = next(r for _, (r, v) in samples if v < 799.0)
+    assert r_when_v_falls <= lag_rpm * math.exp(-2.0)
+    assert bench.node.state is NodeState.ARMED
+
+
 def test_safety_2_watchdog_trips_within_one_tick_and_stops_inside_the_envelope(bench: Bench) -> None:
     node = bench.node
     bench.run_at(145.0, 400.0)

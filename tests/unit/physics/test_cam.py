@@ -8,31 +8,31 @@ import math
 import numpy as np
 import pytest
 
-from millctl.config import CamShape, LimitLaw
+from millctl.config import CamShape, LimitLaw, MillConfig
 from millctl.errors import PhysicsInputError
 from millctl.physics.cam import ellipse_for_amplitude, lift_m, strokes
 from millctl.physics.detachment import find_detachment
 from millctl.physics.limits import LAWS, LimitParams, omega_r_max, switch_omega_v_rad_s
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import simulate
 from millctl.physics.telemetry import revolution_summary
 from millctl.units import rpm_to_rad_s
 
 
 @pytest.fixture(params=["set_a_paper", "set_a_corrected"])
-def pair(request):
-    single = request.getfixturevalue(request.param)
+def pair(request: pytest.FixtureRequest) -> tuple[MillModel, MillModel]:
+    single: MillModel = request.getfixturevalue(request.param)
     return single, dataclasses.replace(single, cam=CamShape.DOUBLE)
 
 
-def test_lift_functions():
+def test_lift_functions() -> None:
     assert strokes(CamShape.SINGLE) == 1 and strokes(CamShape.DOUBLE) == 2
     assert lift_m(CamShape.SINGLE, 1e-3, math.pi / 2) == pytest.approx(1e-3)
     assert lift_m(CamShape.DOUBLE, 1e-3, math.pi / 4) == pytest.approx(1e-3)  # two strokes per revolution
     assert lift_m(CamShape.DOUBLE, 1e-3, 3 * math.pi / 4) == pytest.approx(-1e-3)
 
 
-def test_ellipse_semi_axes_give_the_stroke():
+def test_ellipse_semi_axes_give_the_stroke() -> None:
     e = ellipse_for_amplitude(1e-3, 20e-3)
     assert e.semi_major_m - e.semi_minor_m == pytest.approx(2e-3)
     assert e.eccentricity == pytest.approx(math.sqrt(1 - (19 / 21) ** 2))
@@ -41,7 +41,7 @@ def test_ellipse_semi_axes_give_the_stroke():
         ellipse_for_amplitude(1e-3, 0.5e-3)
 
 
-def test_every_law_sees_the_lift_speed(set_a):
+def test_every_law_sees_the_lift_speed(set_a: MillModel) -> None:
     single = LimitParams(set_a.rod_mass_kg, set_a.r0_m, set_a.eccentricity_m, set_a.spring_n_per_m)
     double = dataclasses.replace(single, cam=CamShape.DOUBLE)
     w_v = rpm_to_rad_s(np.array([0.0, 150.0, 300.0, 400.0, 600.0]))
@@ -50,7 +50,7 @@ def test_every_law_sees_the_lift_speed(set_a):
     assert switch_omega_v_rad_s(double) == pytest.approx(switch_omega_v_rad_s(single) / 2.0)
 
 
-def test_detachment_flight_and_events_see_the_lift(pair):
+def test_detachment_flight_and_events_see_the_lift(pair: tuple[MillModel, MillModel]) -> None:
     single, double = pair
     w_r, w_v = rpm_to_rad_s(150.0), rpm_to_rad_s(400.0)
     for alpha0 in (0.0, 0.7, 2.0):
@@ -65,13 +65,13 @@ def test_detachment_flight_and_events_see_the_lift(pair):
     np.testing.assert_allclose(sim_d.impacts["energy_j"], sim_s.impacts["energy_j"], rtol=1e-6)
 
 
-def test_telemetry_samples_the_lift_evenly(pair):
+def test_telemetry_samples_the_lift_evenly(pair: tuple[MillModel, MillModel]) -> None:
     single, double = pair
     w_r, w_v = rpm_to_rad_s(150.0), rpm_to_rad_s(400.0)
     assert revolution_summary(double, w_r, w_v) == revolution_summary(single, w_r, 2.0 * w_v)
 
 
-def test_config_cam_shape_reaches_the_model_and_the_envelope(config):
+def test_config_cam_shape_reaches_the_model_and_the_envelope(config: MillConfig) -> None:
     from millctl.physics.model import MillModel
     from millctl.safety import Envelope
     from millctl.studies.cams import with_cam
@@ -83,7 +83,7 @@ def test_config_cam_shape_reaches_the_model_and_the_envelope(config):
     assert float(double_env.omega_r_limit_rpm(400.0)) == pytest.approx(float(single_env.omega_r_limit_rpm(800.0)))
 
 
-def test_batch_kernels_see_the_lift(pair):
+def test_batch_kernels_see_the_lift(pair: tuple[MillModel, MillModel]) -> None:
     from millctl.physics.batch import SceneBatch, first_impacts
 
     single, double = pair

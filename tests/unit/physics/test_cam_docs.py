@@ -14,17 +14,17 @@ BLOCK = re.compile(r"<!-- output of: millctl (?P<args>[^>]*?) -->\n```text\n(?P<
 BLOCKS = [(m["args"], m["text"]) for m in BLOCK.finditer((REPO / "docs" / "model.md").read_text(encoding="utf-8"))]
 
 
-def test_the_docs_hold_the_cam_comparison():
+def test_the_docs_hold_the_cam_comparison() -> None:
     assert len(BLOCKS) >= 2 and all("--cam double" in args for args, _ in BLOCKS)
 
 
 @pytest.mark.parametrize(("args", "text"), BLOCKS, ids=[a for a, _ in BLOCKS])
-def test_docs_block_is_the_commands_output(args, text, capsys):
+def test_docs_block_is_the_commands_output(args: str, text: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--config", str(CONFIG_FILE), *shlex.split(args)]) == 0
     assert capsys.readouterr().out.rstrip("\n") == text
 
 
-def test_double_cam_claim_in_numbers(capsys):
+def test_double_cam_claim_in_numbers(capsys: pytest.CaptureFixture[str]) -> None:
     """Paper's model: more impacts per revolution, fewer than twice; corrected model: none more."""
     import json
 

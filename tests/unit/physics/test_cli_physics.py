@@ -8,18 +8,20 @@ import math
 import pytest
 
 from millctl.cli import main
+from millctl.config import MillConfig
 from tests.conftest import CONFIG_FILE
 
 
-def _run(capsys, *args):
+def _run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str]:
+    """``millctl physics ARGS``: its exit code and what it printed on stdout."""
     code = main(["--config", str(CONFIG_FILE), "physics", *args])
-    return code, capsys.readouterr()
+    return code, capsys.readouterr().out
 
 
-def test_json_report_corrected(capsys, config):
+def test_json_report_corrected(capsys: pytest.CaptureFixture[str], config: MillConfig) -> None:
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
     assert code == 0
-    report = json.loads(out.out)["result"]
+    report = json.loads(out)["result"]
     assert report["variant"] == "corrected" and not report["pinned"]
     detach, imp, summary = report["first_detachment"], report["first_impact"], report["summary"]
     # Relations derived by hand, not by the code under test:
@@ -40,47 +42,47 @@ def test_json_report_corrected(capsys, config):
     assert summary["impact_power_w"] == pytest.approx(summary["mean_impact_energy_j"] * summary["impact_rate_hz"])
 
 
-def test_text_report_paper_pinned(capsys):
+def test_text_report_paper_pinned(capsys: pytest.CaptureFixture[str]) -> None:
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "paper")
     assert code == 0
-    assert "stay pinned" in out.out and "per revolution: pinned" in out.out
+    assert "stay pinned" in out and "per revolution: pinned" in out
 
 
-def test_legacy_method_and_phases(capsys):
+def test_legacy_method_and_phases(capsys: pytest.CaptureFixture[str]) -> None:
     args = ("--rot-rpm", "100", "--vib-rpm", "800", "--method", "legacy", "--dt", "1e-4")
     code, out = _run(capsys, *args, "--theta0-deg", "-120", "--alpha0-deg", "45", "--json")
     assert code == 0
-    report = json.loads(out.out)["result"]
+    report = json.loads(out)["result"]
     assert report["method"] == "legacy" and report["first_impact"] is not None
 
 
-def test_negative_speed_is_invalid_input(capsys):
+def test_negative_speed_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         _run(capsys, "--rot-rpm=-5", "--vib-rpm", "800")
     assert exc.value.code == 1
     assert "≥ 0" in capsys.readouterr().err
 
 
-def test_no_slip_flag_in_json_and_text(capsys):
+def test_no_slip_flag_in_json_and_text(capsys: pytest.CaptureFixture[str]) -> None:
     """Issue 20: the report says where the carried rod needs |F_t|/N > μ (−52.4° at 200/800, α0 = 0)."""
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--json")
     assert code == 0
-    ns = json.loads(out.out)["result"]["no_slip"]
+    ns = json.loads(out)["result"]["no_slip"]
     assert ns["violated"] is True and ns["friction"] == pytest.approx(0.3)
     assert ns["onset_theta_deg"] == pytest.approx(-52.37, abs=0.01) and ns["onset_time_s"] < ns["arc_end_s"]
     code, out = _run(capsys, "--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected")
-    assert code == 0 and "no-slip violated" in out.out and "θ = -52.37°" in out.out
+    assert code == 0 and "no-slip violated" in out and "θ = -52.37°" in out
 
 
 @pytest.mark.parametrize(("spin", "detached"), [("locked", True), ("free", False)])
-def test_slip_ride_option(capsys, spin, detached):
+def test_slip_ride_option(capsys: pytest.CaptureFixture[str], spin: str, detached: bool) -> None:
     """--slip: rod 0 with Coulomb slip; at α0 = 213.75° the locked rod still leaves, the rolling one does not."""
     args = ("--rot-rpm", "200", "--vib-rpm", "800", "--variant", "corrected", "--alpha0-deg", "213.75")
     code, out = _run(capsys, *args, "--slip", spin, "--json")
     assert code == 0
-    sr = json.loads(out.out)["result"]["slip_ride"]
+    sr = json.loads(out)["result"]["slip_ride"]
     assert sr["spin"] == spin and sr["detached"] is detached and sr["sliding_s"] > 0.0
     if detached:
         assert 0.0 < sr["theta_d_deg"] < 10.0 and sr["flight_time_s"] > 0.0 and sr["energy_j"] > 0.0
     code, out = _run(capsys, *args, "--slip", spin)
-    assert code == 0 and f"slip ride (spin {spin}" in out.out
+    assert code == 0 and f"slip ride (spin {spin}" in out

@@ -15,7 +15,7 @@ from millctl.config import ModelVariant
 from millctl.physics.detachment import find_detachment
 from millctl.physics.kinematics import normal_force_per_mass
 from millctl.physics.limits import LimitParams, omega_r_max_paper_eq9
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 
 
 def _mp_normal(scene: Scene, t: mpmath.mpf) -> mpmath.mpf:
@@ -40,7 +40,7 @@ def _naive_scan_detaches(scene: Scene, samples: int) -> bool:
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("variant", list(ModelVariant))
-def test_detachment_time_agrees_with_mpmath(set_a, seed, variant):
+def test_detachment_time_agrees_with_mpmath(set_a: MillModel, seed: int, variant: ModelVariant) -> None:
     rng = np.random.default_rng(seed)
     model = dataclasses.replace(set_a, variant=variant)
     scene = Scene(model, rng.uniform(4.0, 25.0), rng.uniform(0.0, 130.0), -0.5 * math.pi, rng.uniform(0, 2 * math.pi))
@@ -58,7 +58,7 @@ def test_detachment_time_agrees_with_mpmath(set_a, seed, variant):
 
 
 @pytest.mark.parametrize("sign", [+1, -1])
-def test_grazing_detachment_is_decided_at_the_minimum(set_a_corrected, sign):
+def test_grazing_detachment_is_decided_at_the_minimum(set_a_corrected: MillModel, sign: int) -> None:
     """N's minimum at θ = 90° is ±2e-12 g: the engine detaches only when it dips below zero; a scan misses it."""
     model = dataclasses.replace(set_a_corrected, eccentricity_m=0.0)
     omega = math.sqrt(model.g_m_s2 / model.r0_m) * (1.0 - sign * 1e-12)
@@ -72,7 +72,7 @@ def test_grazing_detachment_is_decided_at_the_minimum(set_a_corrected, sign):
         assert not det.detached and math.isnan(det.theta_rad)
 
 
-def test_grazing_with_cam_coupling_finds_the_dip(set_a_corrected):
+def test_grazing_with_cam_coupling_finds_the_dip(set_a_corrected: MillModel) -> None:
     """r_d ≠ 0: place ω_r so that N's global minimum is −1e-13 m/s²; the engine finds the zero inside the dip."""
     base = Scene(set_a_corrected, 20.0, 90.0, -0.5 * math.pi, 1.0)
     f = normal_force_per_mass(base, base.theta0_rad)
@@ -92,7 +92,7 @@ def test_grazing_with_cam_coupling_finds_the_dip(set_a_corrected):
 
 
 @pytest.mark.parametrize("offset", [-1e-9, 0.0, 1e-9])
-def test_spring_balancing_inertia_k_equals_m_omega_v_squared(set_a_paper, offset):
+def test_spring_balancing_inertia_k_equals_m_omega_v_squared(set_a_paper: MillModel, offset: float) -> None:
     """k ≈ mω_v²: eq. 7's cam term vanishes and the paper's θ_d is 2 r0 ω_r²/g whichever side we are on."""
     w_v = math.sqrt(set_a_paper.spring_n_per_m / set_a_paper.rod_mass_kg) * (1.0 + offset)
     omega_r = 10.0
@@ -102,7 +102,7 @@ def test_spring_balancing_inertia_k_equals_m_omega_v_squared(set_a_paper, offset
     assert math.sin(det.theta_rad) == pytest.approx(expected, rel=1e-6)
 
 
-def test_eq9_numerator_near_zero(set_a_paper):
+def test_eq9_numerator_near_zero(set_a_paper: MillModel) -> None:
     """mg − (k − mω_v²) r_d ≈ 0 (stiff spring): eq. 9 ≈ 0, yet the engine's detachment still matches mpmath."""
     model = dataclasses.replace(set_a_paper, spring_n_per_m=2000.0)
     m, k, r_d, g = model.rod_mass_kg, model.spring_n_per_m, model.eccentricity_m, model.g_m_s2
@@ -117,7 +117,7 @@ def test_eq9_numerator_near_zero(set_a_paper):
     assert float(root) == pytest.approx(det.time_s, rel=1e-12)
 
 
-def test_pinned_at_standstill_and_starting_unsupported(set_a_corrected):
+def test_pinned_at_standstill_and_starting_unsupported(set_a_corrected: MillModel) -> None:
     assert not find_detachment(Scene(set_a_corrected, 0.0, 0.0, -0.5 * math.pi)).detached
     top = find_detachment(Scene(set_a_corrected, 5.0, 0.0, 0.5 * math.pi))
     assert top.detached and top.at_start and top.time_s == 0.0
@@ -131,7 +131,9 @@ def test_pinned_at_standstill_and_starting_unsupported(set_a_corrected):
     alpha0=st.floats(0.0, 2 * math.pi),
     corrected=st.booleans(),
 )
-def test_detachment_is_a_falling_zero_with_n_positive_before(set_a, omega_r, omega_v, theta0, alpha0, corrected):
+def test_detachment_is_a_falling_zero_with_n_positive_before(
+    set_a: MillModel, omega_r: float, omega_v: float, theta0: float, alpha0: float, corrected: bool
+) -> None:
     model = dataclasses.replace(set_a, variant=ModelVariant.CORRECTED if corrected else ModelVariant.PAPER)
     scene = Scene(model, omega_r, omega_v, theta0, alpha0)
     f = normal_force_per_mass(scene, theta0)

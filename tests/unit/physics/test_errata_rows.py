@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import mpmath
 import numpy as np
@@ -15,13 +16,14 @@ from millctl.physics import impact
 from millctl.physics.errata import theta_d_over_cam_phase
 from millctl.physics.legacy import arc_wall_sink_leading_m, arc_wall_sink_m
 from millctl.physics.limits import LimitParams, eq9_vacuous_below_rad_s
+from millctl.physics.model import MillModel
 from millctl.units import rpm_to_rad_s
 from tests.conftest import CONFIG_FILE
 
 W_R, W_V = rpm_to_rad_s(200.0), rpm_to_rad_s(800.0)
 
 
-def test_eq7_cam_phase_mean_against_an_independent_scan(set_a_corrected):
+def test_eq7_cam_phase_mean_against_an_independent_scan(set_a_corrected: MillModel) -> None:
     """θ_d over a uniform cam phase at the bottom: N(t) sampled densely, first fall refined by brentq."""
     m, phases = set_a_corrected, 90
     spread = theta_d_over_cam_phase(m, W_R, W_V, phases=phases)
@@ -30,7 +32,7 @@ def test_eq7_cam_phase_mean_against_an_independent_scan(set_a_corrected):
     for k in range(phases):
         a0 = 2 * math.pi * (k + 0.5) / phases
 
-        def n(t, a0=a0):
+        def n(t: np.ndarray, a0: float = a0) -> np.ndarray:
             g_eff = m.g_m_s2 - m.eccentricity_m * W_V**2 * np.sin(a0 + W_V * t)
             return m.r0_m * W_R**2 - g_eff * np.sin(-0.5 * math.pi + W_R * t)
 
@@ -45,7 +47,7 @@ def test_eq7_cam_phase_mean_against_an_independent_scan(set_a_corrected):
 
 
 @pytest.mark.parametrize("q", [36, 360, 3600])
-def test_arc_wall_sink_against_the_geometry(set_a, q):
+def test_arc_wall_sink_against_the_geometry(set_a: MillModel, q: int) -> None:
     """The rod centre midway between two of q points on the bore, solved in mpmath: |c − p| = r_r."""
     m = set_a
     with mpmath.workdps(40):
@@ -62,17 +64,17 @@ def test_arc_wall_sink_against_the_geometry(set_a, q):
     assert old / arc_wall_sink_leading_m(m, q) == pytest.approx(m.vial_radius_m / m.r0_m, rel=1e-12)
 
 
-def test_arc_wall_sink_set_a_number(set_a):
+def test_arc_wall_sink_set_a_number(set_a: MillModel) -> None:
     assert round(arc_wall_sink_m(set_a, 360) * 1e6, 2) == 2.74
 
 
-def _hertz_b_from_peak(load, length, e_star, r_eff):
+def _hertz_b_from_peak(load: float, length: float, e_star: float, r_eff: float) -> float:
     """Half-width from the peak pressure route: p0 = √(W E*/(π L R')), b = 2W/(π L p0)."""
     p0 = math.sqrt(load * e_star / (math.pi * length * r_eff))
     return 2 * load / (math.pi * length * p0)
 
 
-def test_eq20_area_is_the_hertz_strip_of_two_rods(set_a):
+def test_eq20_area_is_the_hertz_strip_of_two_rods(set_a: MillModel) -> None:
     m = set_a
     weight = m.rod_mass_kg * m.g_m_s2
     e_star = m.rod_youngs_pa / (2 * (1 - m.rod_poisson**2))
@@ -83,7 +85,7 @@ def test_eq20_area_is_the_hertz_strip_of_two_rods(set_a):
     assert round(tau / 1e6, 2) == 2.36
 
 
-def test_eq26_27_carriage_traction_at_the_top(set_a_corrected, set_a_paper):
+def test_eq26_27_carriage_traction_at_the_top(set_a_corrected: MillModel, set_a_paper: MillModel) -> None:
     """θ = 0, sin α = 0, 200 rpm: |F_t| = m g over the strip (5.38 MPa), capped at μN (1.30 MPa); printed 0.94."""
     m = set_a_corrected
     n = m.rod_mass_kg * m.r0_m * W_R**2
@@ -98,7 +100,7 @@ def test_eq26_27_carriage_traction_at_the_top(set_a_corrected, set_a_paper):
     assert impact.carriage_shear_pa(m, W_R, W_V, 0.5 * math.pi, -0.5 * math.pi) == (0.0, 0.0)  # off the wall
 
 
-def test_k_makes_eq9_vacuous_below(set_a):
+def test_k_makes_eq9_vacuous_below(set_a: MillModel) -> None:
     """Numerator m g − (k − m ω_v²) r_d = 0 solved in mpmath; Set A's k never makes it vacuous."""
     p = LimitParams(set_a.rod_mass_kg, set_a.r0_m, set_a.eccentricity_m, 1e5, set_a.g_m_s2)
     with mpmath.workdps(30):
@@ -108,7 +110,7 @@ def test_k_makes_eq9_vacuous_below(set_a):
     assert eq9_vacuous_below_rad_s(dataclasses.replace(p, spring_n_per_m=set_a.spring_n_per_m)) == 0.0
 
 
-def test_config_check_warns_about_a_platform_spring_rate(tmp_path, capsys):
+def test_config_check_warns_about_a_platform_spring_rate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     text = CONFIG_FILE.read_text()
     assert "stiffness_n_per_m = 92.0" in text
     bad = tmp_path / "k.toml"

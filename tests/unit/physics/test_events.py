@@ -13,16 +13,16 @@ from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import FlightState, RodState, WallState, depart
 from millctl.physics.legacy import legacy_first_contact
 from millctl.physics.methods import first_impact
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 from millctl.physics.reference import closed_form_flight_time_s, reference_first_impact
 
 
 @pytest.fixture(scope="module")
-def one_rod(set_a_corrected):
+def one_rod(set_a_corrected: MillModel) -> MillModel:
     return dataclasses.replace(set_a_corrected, n_rods=1)
 
 
-def test_near_limit_omega_r_short_flight(one_rod):
+def test_near_limit_omega_r_short_flight(one_rod: MillModel) -> None:
     """ω_r within 1e-5 of √(g/r0) (r_d = 0): a ~1 ms flight, exact to 1e-10; the paper's step of 1 ms is 50 % off."""
     model = dataclasses.replace(one_rod, eccentricity_m=0.0)
     omega = math.sqrt(model.g_m_s2 / model.r0_m) * (1.0 - 1e-5)
@@ -38,7 +38,7 @@ def test_near_limit_omega_r_short_flight(one_rod):
     assert abs(legacy.time_s - det.time_s - expected) > 0.2 * expected
 
 
-def _grazing_pair(model, delta_m):
+def _grazing_pair(model: MillModel, delta_m: float) -> tuple[Scene, FlightState, WallState, float]:
     """A flight whose apex passes at 2 r_r + δ below a pinned rod at the top (ω_r = ω_v = r_d = 0)."""
     model = dataclasses.replace(model, eccentricity_m=0.0, n_rods=2)
     scene = Scene(model, 0.0, 0.0, 0.5 * math.pi, 0.0)
@@ -50,7 +50,7 @@ def _grazing_pair(model, delta_m):
 
 
 @pytest.mark.parametrize("rel", [1e-9, -1e-9])
-def test_grazing_rod_rod_contact(set_a_corrected, rel):
+def test_grazing_rod_rod_contact(set_a_corrected: MillModel, rel: float) -> None:
     """Closest approach 2 r_r (1 ± 1e-9): the engine touches only when it should; a 1.3 ms step check misses it."""
     scene, flight, partner, t_apex = _grazing_pair(set_a_corrected, rel * set_a_corrected.contact_distance_m)
     states: list[RodState] = [flight, partner]
@@ -67,7 +67,7 @@ def test_grazing_rod_rod_contact(set_a_corrected, rel):
     assert np.all(gap2 > 0.0)  # the paper's "distance ≤ contact" check never fires
 
 
-def test_tiny_steps_fake_a_collision_at_departure(one_rod):
+def test_tiny_steps_fake_a_collision_at_departure(one_rod: MillModel) -> None:
     """dt = 1e-8 s in absolute coordinates: the paper's check fires right after departure; exact does not."""
     scene = Scene(one_rod, 15.0, 80.0, -0.5 * math.pi, 0.3)
     det = find_detachment(scene)
@@ -80,7 +80,7 @@ def test_tiny_steps_fake_a_collision_at_departure(one_rod):
 
 
 @pytest.mark.parametrize("tol", [1e-3, 1e-6, 0.0])
-def test_huge_and_tiny_tolerances(one_rod, tol):
+def test_huge_and_tiny_tolerances(one_rod: MillModel, tol: float) -> None:
     """The exact engine's error follows its tolerance from 1 ms down to ulps; a 30 ms legacy step is 10 ms off."""
     scene = Scene(one_rod, 15.0, 80.0, -0.5 * math.pi, 0.3)
     ref = reference_first_impact(scene, digits=30)
@@ -92,7 +92,7 @@ def test_huge_and_tiny_tolerances(one_rod, tol):
         assert legacy is not None and abs(legacy.time_s - ref.time_s) > 5e-3
 
 
-def test_gamma_above_one_hops_every_cam_cycle(set_a_corrected):
+def test_gamma_above_one_hops_every_cam_cycle(set_a_corrected: MillModel) -> None:
     """Γ = 1.5: rods leave the wall in most cam cycles at any ω_r; the first impact still matches mpmath."""
     w_v = math.sqrt(1.5 * set_a_corrected.g_m_s2 / set_a_corrected.eccentricity_m)
     scene = Scene(set_a_corrected, 35.0, w_v, -0.5 * math.pi, 0.0)
@@ -105,9 +105,9 @@ def test_gamma_above_one_hops_every_cam_cycle(set_a_corrected):
 
 
 @pytest.mark.parametrize("variant_fixture", ["set_a_corrected", "set_a_paper"])
-def test_packing_limit(request, variant_fixture):
+def test_packing_limit(request: pytest.FixtureRequest, variant_fixture: str) -> None:
     """n at the packing limit (neighbours 1e-9 apart): first impacts are exact, no contact is faked at the start."""
-    model = request.getfixturevalue(variant_fixture)
+    model: MillModel = request.getfixturevalue(variant_fixture)
     r_r = model.vial_radius_m / 3.0 * (1.0 - 1e-9)  # r0 sin(π/6) = r_r ⇔ r_r = r_v/3
     model = dataclasses.replace(model, rod_radius_m=r_r, n_rods=6)
     scene = Scene(model, 10.0, 60.0, -0.5 * math.pi, 0.2)
@@ -118,7 +118,7 @@ def test_packing_limit(request, variant_fixture):
     assert event.time_s == pytest.approx(ref.time_s, rel=1e-10, abs=1e-13)
 
 
-def test_departing_rod_keeps_its_own_state(set_a_corrected):
+def test_departing_rod_keeps_its_own_state(set_a_corrected: MillModel) -> None:
     """Each rod detaches at its own time: rod 1 (60° ahead) is still pinned while rod 0 flies (eqs 11–12 corrected)."""
     scene = Scene(set_a_corrected, 12.0, 50.0, -0.5 * math.pi, 0.0)
     det0 = find_detachment(scene, scene.rod_theta0_rad(0))

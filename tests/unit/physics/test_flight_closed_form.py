@@ -11,17 +11,17 @@ from millctl.config import ModelVariant
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import RodState, WallState, depart
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 
 
 @pytest.fixture(scope="module")
-def still_cam(set_a_corrected):
+def still_cam(set_a_corrected: MillModel) -> MillModel:
     return dataclasses.replace(set_a_corrected, eccentricity_m=0.0, n_rods=1)
 
 
 @pytest.mark.parametrize("omega_r", [5.0, 10.0, 15.0, 20.0, 22.0, 23.3])
 @pytest.mark.parametrize("theta0", [-0.5 * math.pi, -2.5, -0.2])
-def test_flight_time_closed_form(still_cam, omega_r, theta0):
+def test_flight_time_closed_form(still_cam: MillModel, omega_r: float, theta0: float) -> None:
     """Flight time 4 r0 ω_r cos θ_d / g to 1e-12 relative; sin θ_d = r0 ω_r² / g."""
     scene = Scene(still_cam, omega_r, 50.0, theta0, 0.7)
     det = find_detachment(scene)
@@ -37,7 +37,7 @@ def test_flight_time_closed_form(still_cam, omega_r, theta0):
     assert t_f == pytest.approx(expected, rel=1e-12)
 
 
-def test_paper_variant_detaches_at_eq7(set_a_paper):
+def test_paper_variant_detaches_at_eq7(set_a_paper: MillModel) -> None:
     """Paper variant, r_d = 0: sin θ_d = 2 r0 ω_r² / g (printed eq. 7 with r_d = 0)."""
     model = dataclasses.replace(set_a_paper, eccentricity_m=0.0)
     omega_r = 12.0

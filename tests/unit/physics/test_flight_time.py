@@ -18,7 +18,7 @@ import pytest
 from millctl.physics.detachment import find_detachment
 from millctl.physics.events import WALL, earliest_contact
 from millctl.physics.flight import RodState, WallState, depart
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import simulate
 from millctl.physics.telemetry import revolution_summary
 from millctl.units import rpm_to_rad_s
@@ -27,12 +27,12 @@ FIVE_RPM = rpm_to_rad_s(5.0)
 
 
 @pytest.fixture(scope="module")
-def still_cam(set_a_corrected):
+def still_cam(set_a_corrected: MillModel) -> MillModel:
     return dataclasses.replace(set_a_corrected, eccentricity_m=0.0, n_rods=1)
 
 
 @pytest.mark.parametrize("theta0", [-0.5 * math.pi, -2.0, -1.2, -0.4])
-def test_flight_time_is_carried_not_differenced(still_cam, theta0):
+def test_flight_time_is_carried_not_differenced(still_cam: MillModel, theta0: float) -> None:
     scene = Scene(still_cam, FIVE_RPM, 50.0, theta0, 0.7)
     det = find_detachment(scene)
     assert det.detached and det.time_s > 0.1
@@ -45,7 +45,7 @@ def test_flight_time_is_carried_not_differenced(still_cam, theta0):
     assert contact.time_s == pytest.approx(det.time_s + contact.flight_time_s, abs=2 * math.ulp(contact.time_s))
 
 
-def test_flight_time_near_three_seconds_in_simulate_and_telemetry(still_cam):
+def test_flight_time_near_three_seconds_in_simulate_and_telemetry(still_cam: MillModel) -> None:
     """The offline records and the node telemetry carry τ_f; against the exact departure (sin θ_d = r0 ω_r²/g).
 
     What remains in the offline record is the detachment time's own rounding (brentq to a

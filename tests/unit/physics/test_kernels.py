@@ -124,3 +124,19 @@ def test_flight_after_a_long_run_keeps_its_digits(set_a_corrected: MillModel) ->
         state[0, :] = [1.0, t0, 0.0, 0.0, 0.018, -0.2, 0.0, 0.0, math.sin(alpha_d), math.cos(alpha_d)]
         positions.append(np.array(kernels._rel(p, state, 0, t0 + tau)))
     assert np.max(np.abs(positions[1] - positions[0])) <= 1e-16
+
+
+def test_a_loose_tolerance_still_names_the_first_pair(set_a_corrected: MillModel) -> None:
+    """At the packing limit (neighbours 1e-9 apart) rods 2–1 and 4–5 touch 3e-11 s apart. With tol = 1e-7 or
+    1e-9 s the old kernel ordered the two by their loose roots and named 4–5 (the benchmark counted a missed
+    event); candidates closer than the tolerance are now ordered at full precision."""
+    packed = dataclasses.replace(
+        set_a_corrected, rod_radius_m=set_a_corrected.vial_radius_m / 3.0 * (1.0 - 1e-9), n_rods=6
+    )
+    scene = Scene(packed, 10.0, 60.0, -0.5 * math.pi, 0.2)
+    exact = first_impact(scene, "exact")
+    assert exact is not None and (exact.rod, exact.partner) == (2, 1)
+    for tol in (1e-7, 1e-9):
+        event = first_impact(scene, "exact", tol=tol)
+        assert event is not None and (event.rod, event.partner) == (2, 1)
+        assert abs(event.time_s - exact.time_s) <= 2.0 * tol

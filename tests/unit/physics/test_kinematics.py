@@ -8,10 +8,10 @@ import pytest
 
 from millctl.config import ModelVariant
 from millctl.physics.kinematics import g_eff_m_s2, normal_force_per_mass, rod_on_wall, true_normal_force_per_mass
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 
 
-def test_eqs_1_to_3_as_printed_with_zero_phases(set_a):
+def test_eqs_1_to_3_as_printed_with_zero_phases(set_a: MillModel) -> None:
     """θ0 = α0 = 0 reproduces the printed eqs 1a–3b."""
     w_r, w_v, t = 20.0, 80.0, 0.0123
     scene = Scene(set_a, w_r, w_v, 0.0, 0.0)
@@ -25,7 +25,7 @@ def test_eqs_1_to_3_as_printed_with_zero_phases(set_a):
     assert ay == pytest.approx(-(w_v**2 * r_d * math.sin(w_v * t) + w_r**2 * r0 * math.sin(w_r * t)))
 
 
-def test_velocity_and_acceleration_are_derivatives_with_phases(set_a):
+def test_velocity_and_acceleration_are_derivatives_with_phases(set_a: MillModel) -> None:
     scene = Scene(set_a, 17.0, 95.0, 1.3, -0.4)
     t, h = 0.037, 1e-6
     p0, p1, p2 = rod_on_wall(scene, t - h), rod_on_wall(scene, t), rod_on_wall(scene, t + h)
@@ -35,7 +35,7 @@ def test_velocity_and_acceleration_are_derivatives_with_phases(set_a):
 
 
 @pytest.mark.parametrize("variant", list(ModelVariant))
-def test_normal_force_trig_sum_matches_the_direct_form(set_a, variant):
+def test_normal_force_trig_sum_matches_the_direct_form(set_a: MillModel, variant: ModelVariant) -> None:
     scene = Scene(set_a, 14.0, 70.0, 0.7, 2.1)
     f = normal_force_per_mass(scene, 0.7, variant)
     m = set_a

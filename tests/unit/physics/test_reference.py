@@ -10,13 +10,13 @@ import pytest
 
 from millctl.config import ModelVariant
 from millctl.physics.methods import first_impact
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 from millctl.physics.reference import closed_form_flight_time_s, reference_first_impact
 from millctl.physics.simulate import simulate
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_first_impact_matches_mpmath(set_a, seed):
+def test_first_impact_matches_mpmath(set_a: MillModel, seed: int) -> None:
     rng = np.random.default_rng(100 + seed)
     variant = ModelVariant.CORRECTED if seed % 2 else ModelVariant.PAPER
     model = dataclasses.replace(set_a, variant=variant, restitution=float(rng.uniform(0.0, 0.8)))
@@ -37,7 +37,7 @@ def test_first_impact_matches_mpmath(set_a, seed):
     assert event.tangential_velocity_m_s == pytest.approx(ref.tangential_velocity_m_s, rel=1e-8, abs=1e-12)
 
 
-def test_ivp_converges_to_the_reference(set_a_corrected):
+def test_ivp_converges_to_the_reference(set_a_corrected: MillModel) -> None:
     """One rod leaving with N = 0 (solve_ivp cannot tell the departure root from a contact when a rod starts
     unsupported, a spurious event at t = 0 the benchmark counts)."""
     scene = Scene(dataclasses.replace(set_a_corrected, n_rods=1), 12.0, 70.0, -0.5 * math.pi, 1.1)
@@ -48,7 +48,7 @@ def test_ivp_converges_to_the_reference(set_a_corrected):
     assert fine.time_s == pytest.approx(ref.time_s, rel=1e-8)
 
 
-def test_closed_form_against_a_departure_with_negative_normal_force(set_a_paper):
+def test_closed_form_against_a_departure_with_negative_normal_force(set_a_paper: MillModel) -> None:
     """Paper variant, r_d = 0: the rod leaves where the true N < 0; flight 2(a + √(a² − n_d))/g, a = r0 ω cos θ_d."""
     model = dataclasses.replace(set_a_paper, eccentricity_m=0.0, n_rods=1)
     omega = 12.0

@@ -8,24 +8,24 @@ import numpy as np
 import pytest
 
 from millctl.errors import PhysicsInputError
-from millctl.physics.model import Scene
-from millctl.physics.simulate import DETACHMENT_DTYPE, IMPACT_DTYPE, simulate
+from millctl.physics.model import MillModel, Scene
+from millctl.physics.simulate import DETACHMENT_DTYPE, IMPACT_DTYPE, SimulationResult, simulate
 from millctl.units import rpm_to_rad_s
 
 
 @pytest.fixture(scope="module")
-def run(set_a_corrected):
+def run(set_a_corrected: MillModel) -> tuple[Scene, SimulationResult]:
     scene = Scene(set_a_corrected, rpm_to_rad_s(100.0), rpm_to_rad_s(800.0), -0.5 * math.pi, 0.0)
     return scene, simulate(scene, 1.0)
 
 
-def test_records_are_structured_arrays(run):
+def test_records_are_structured_arrays(run: tuple[Scene, SimulationResult]) -> None:
     _, result = run
     assert result.impacts.dtype == IMPACT_DTYPE and result.detachments.dtype == DETACHMENT_DTYPE
     assert len(result.impacts) > 10 and len(result.detachments) > 10
 
 
-def test_events_are_ordered_and_physical(run):
+def test_events_are_ordered_and_physical(run: tuple[Scene, SimulationResult]) -> None:
     scene, result = run
     imp = result.impacts
     assert np.all(np.diff(imp["time_s"]) >= 0.0)
@@ -43,7 +43,7 @@ def test_events_are_ordered_and_physical(run):
 
 
 @pytest.mark.parametrize("omega_r", [10.0, 40.0])
-def test_gamma_above_one(set_a_corrected, omega_r):
+def test_gamma_above_one(set_a_corrected: MillModel, omega_r: float) -> None:
     """Γ = 1.5: below √(g(Γ − 1)/r0) ≈ 16.5 rad/s rods hop in most cam cycles (several times per revolution);
     above the best-phase bound √(g(1 + Γ)/r0) ≈ 36.9 rad/s nothing detaches — Γ ≥ 1 is not "regardless of ω_r"."""
     g, r0 = set_a_corrected.g_m_s2, set_a_corrected.r0_m
@@ -58,18 +58,18 @@ def test_gamma_above_one(set_a_corrected, omega_r):
         assert per_rod == 0.0
 
 
-def test_paper_pinned_above_eq9(set_a_paper):
+def test_paper_pinned_above_eq9(set_a_paper: MillModel) -> None:
     result = simulate(Scene(set_a_paper, rpm_to_rad_s(210.0), rpm_to_rad_s(800.0)), 2.0)
     assert len(result.impacts) == 0 and len(result.detachments) == 0
 
 
-def test_negative_horizon_rejected(set_a_paper):
+def test_negative_horizon_rejected(set_a_paper: MillModel) -> None:
     with pytest.raises(PhysicsInputError):
         simulate(Scene(set_a_paper, 1.0, 1.0), -1.0)
 
 
 @pytest.mark.parametrize("bad", [{"omega_r_rad_s": -1.0}, {"omega_v_rad_s": -2.0}, {"theta0_rad": math.inf}])
-def test_scene_rejects_bad_speeds(set_a_paper, bad):
+def test_scene_rejects_bad_speeds(set_a_paper: MillModel, bad: dict[str, float]) -> None:
     args = {"omega_r_rad_s": 1.0, "omega_v_rad_s": 1.0, "theta0_rad": 0.0} | bad
     with pytest.raises(PhysicsInputError):
         Scene(set_a_paper, **args)

@@ -9,21 +9,37 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Sequence
 
 import pytest
 from scipy.integrate import solve_ivp
 
 from millctl.errors import PhysicsInputError
 from millctl.physics.detachment import find_detachment
-from millctl.physics.model import Scene
+from millctl.physics.model import MillModel, Scene
 from millctl.physics.slip_ride import fly_to_wall, ride, slip_effect
 from millctl.units import rpm_to_rad_s
 
 W_R, W_V = rpm_to_rad_s(200.0), rpm_to_rad_s(800.0)
 
+State = Sequence[float]
+"""The sliding block's state for solve_ivp: (angle φ, angular rate φ')."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FallingZero:
+    """A solve_ivp event: ``f(t, y)`` crossing zero downwards ends the integration."""
+
+    f: Callable[[float, State], float]
+    terminal: bool = True
+    direction: float = -1.0
+
+    def __call__(self, t: float, y: State) -> float:
+        return self.f(t, y)
+
 
 @pytest.mark.parametrize("alpha0", [0.3, 2.0, 4.4])
-def test_locked_spin_with_unbounded_friction_is_the_paper_carriage(set_a_corrected, alpha0):
+def test_locked_spin_with_unbounded_friction_is_the_paper_carriage(set_a_corrected: MillModel, alpha0: float) -> None:
     """μ = ∞, spin locked: the ride is the carriage, and detaches where the certified N = 0 search says."""
     scene = Scene(set_a_corrected, W_R, W_V, -0.5 * math.pi, alpha0)
     r = ride(scene, "locked", friction=math.inf)
@@ -34,7 +50,7 @@ def test_locked_spin_with_unbounded_friction_is_the_paper_carriage(set_a_correct
 
 
 @pytest.mark.parametrize("omega_r", [30.0, 35.0, 40.0])
-def test_free_rod_rolls_and_detaches_where_energy_says(set_a_corrected, omega_r):
+def test_free_rod_rolls_and_detaches_where_energy_says(set_a_corrected: MillModel, omega_r: float) -> None:
     """r_d = 0, rolling (j = 2): φ̇² = ω_r² − (4/3)(g/r0)(sin φ + 1); N = 0 gives sin φ_d = (r0 ω_r² − 4g/3)/(7g/3)."""
     model = dataclasses.replace(set_a_corrected, eccentricity_m=0.0)
     r = ride(Scene(model, omega_r, 0.0, -0.5 * math.pi, 0.0), "free", friction=math.inf)
@@ -49,14 +65,14 @@ def test_free_rod_rolls_and_detaches_where_energy_says(set_a_corrected, omega_r)
     )
 
 
-def test_free_rod_at_the_operating_point_is_not_carried(set_a_corrected):
+def test_free_rod_at_the_operating_point_is_not_carried(set_a_corrected: MillModel) -> None:
     """200/800 rpm, μ = 0.3: the rolling rod rocks about the bottom; it stays on the wall for a revolution."""
     r = ride(Scene(set_a_corrected, W_R, W_V, -0.5 * math.pi, 1.0), "free")
     assert not r.detached and r.slip_time_s > 0.0
     assert {p.mode for p in r.phases} == {"stick", "slip"}
 
 
-def test_sliding_block_against_an_independent_integration(set_a_corrected):
+def test_sliding_block_against_an_independent_integration(set_a_corrected: MillModel) -> None:
     """Locked spin, μ = 0.3, a phase that detaches: carriage to the grip loss, then the block slides to N = 0."""
     model, alpha0 = set_a_corrected, 2.0 * math.pi * 9.5 / 16
     scene = Scene(model, W_R, W_V, -0.5 * math.pi, alpha0)
@@ -64,23 +80,19 @@ def test_sliding_block_against_an_independent_integration(set_a_corrected):
     assert r.detached and [p.mode for p in r.phases] == ["stick", "slip"]
     mu, r0, g, c = model.powder_friction, model.r0_m, model.g_m_s2, model.eccentricity_m * W_V**2
 
-    def g_eff(t):
+    def g_eff(t: float) -> float:
         return g - c * math.sin(alpha0 + W_V * t)
 
-    def n(t, y):
+    def n(t: float, y: State) -> float:
         return r0 * y[1] ** 2 - g_eff(t) * math.sin(y[0])
 
-    def grip(t, y):  # carriage: φ = −π/2 + ω_r t; grip lost where μ n = |g_eff cos φ|
+    def lose_grip(t: float, y: State) -> float:  # carriage: φ = −π/2 + ω_r t; grip lost where μ n = |g_eff cos φ|
         return mu * n(t, y) - abs(g_eff(t) * math.cos(y[0]))
 
-    def slide(t, y):
+    def slide(t: float, y: State) -> list[float]:
         return [y[1], (mu * n(t, y) - g_eff(t) * math.cos(y[0])) / r0]
 
-    def off(t, y):
-        return n(t, y)
-
-    grip.terminal = off.terminal = True
-    grip.direction = off.direction = -1
+    grip, off = FallingZero(lose_grip), FallingZero(n)
     carried = solve_ivp(
         lambda t, y: [y[1], 0.0], (0, 1), [-0.5 * math.pi, W_R], events=grip, rtol=1e-12, atol=1e-14, max_step=1e-4
     )
@@ -91,7 +103,7 @@ def test_sliding_block_against_an_independent_integration(set_a_corrected):
     assert r.theta_rad == pytest.approx(slid.y_events[0][0][0], abs=1e-7)
 
 
-def test_flight_from_the_carriage_is_the_closed_form(set_a_corrected):
+def test_flight_from_the_carriage_is_the_closed_form(set_a_corrected: MillModel) -> None:
     """r_d = 0, departure at sin θ_d = r0 ω²/g with φ̇ = ω: flight 4 r0 ω cos θ_d / g; mirrored for φ̇ < 0."""
     model = dataclasses.replace(set_a_corrected, eccentricity_m=0.0)
     omega = 15.0
@@ -108,7 +120,7 @@ def test_flight_from_the_carriage_is_the_closed_form(set_a_corrected):
     ) == pytest.approx(0.0, abs=1e-12)
 
 
-def test_slip_effect_rows_and_bad_input(set_a_corrected):
+def test_slip_effect_rows_and_bad_input(set_a_corrected: MillModel) -> None:
     effect = slip_effect(set_a_corrected, W_R, W_V, phases=2)
     assert [r["model"] for r in effect["rows"]] == ["no-slip", "slip, spin locked", "slip, spin free"]
     assert effect["rows"][0]["detach_fraction"] == 1.0 and effect["rows"][2]["detach_fraction"] == 0.0

@@ -4,17 +4,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import pytest
 
-from millctl.config import ModelVariant
+from millctl.config import MillConfig, ModelVariant
 from millctl.errors import PhysicsInputError
 from millctl.physics.limits import LimitParams, omega_r_max_paper_eq9
+from millctl.physics.model import MillModel
 from millctl.physics.telemetry import RevolutionSummary, revolution_summary
 from millctl.units import rpm_to_rad_s
 
 
-def test_from_config_takes_the_variant(config, set_a):
+def test_from_config_takes_the_variant(config: MillConfig, set_a: MillModel) -> None:
     assert set_a.variant is ModelVariant(config.model.variant)
     assert set_a.r0_m == pytest.approx(0.018)
     assert set_a.rod_mass_kg == pytest.approx(0.0886, abs=5e-4)
@@ -22,7 +24,7 @@ def test_from_config_takes_the_variant(config, set_a):
 
 @pytest.mark.parametrize("variant", list(ModelVariant))
 @pytest.mark.parametrize("omega_r", [0.0, -0.0, 1e-9, -1e-3])
-def test_standstill_is_pinned_and_never_raises(set_a, variant, omega_r):
+def test_standstill_is_pinned_and_never_raises(set_a: MillModel, variant: ModelVariant, omega_r: float) -> None:
     model = dataclasses.replace(set_a, variant=variant)
     s = revolution_summary(model, omega_r, rpm_to_rad_s(800.0))
     assert isinstance(s, RevolutionSummary)
@@ -30,7 +32,7 @@ def test_standstill_is_pinned_and_never_raises(set_a, variant, omega_r):
     assert s.impact_rate_hz == 0.0 and s.impact_power_w == 0.0 and s.mean_impact_energy_j == 0.0
 
 
-def test_corrected_set_a_detaches_and_counts_whole_mill(set_a_corrected):
+def test_corrected_set_a_detaches_and_counts_whole_mill(set_a_corrected: MillModel) -> None:
     w_r = rpm_to_rad_s(200.0)
     s = revolution_summary(set_a_corrected, w_r, rpm_to_rad_s(800.0))
     assert s.detached
@@ -45,14 +47,14 @@ def test_corrected_set_a_detaches_and_counts_whole_mill(set_a_corrected):
     assert s.mean_impact_energy_j > 0.0 and s.mean_shear_pa > 0.0
 
 
-def test_paper_rate_is_eq18_per_rod(set_a_paper):
+def test_paper_rate_is_eq18_per_rod(set_a_paper: MillModel) -> None:
     w_r = rpm_to_rad_s(100.0)
     s = revolution_summary(set_a_paper, w_r, rpm_to_rad_s(800.0))
     assert s.detached
     assert s.impact_rate_hz == pytest.approx(s.collisions_per_rod_rev * w_r / (2 * math.pi), rel=1e-12)
 
 
-def test_paper_pinned_above_its_best_phase_limit(set_a_paper):
+def test_paper_pinned_above_its_best_phase_limit(set_a_paper: MillModel) -> None:
     """Above printed eq. 9 (k < mω_v² there, so eq. 9 is the paper's most permissive phase) nothing detaches."""
     w_v = rpm_to_rad_s(800.0)
     p = LimitParams(set_a_paper.rod_mass_kg, set_a_paper.r0_m, set_a_paper.eccentricity_m, set_a_paper.spring_n_per_m)
@@ -61,7 +63,7 @@ def test_paper_pinned_above_its_best_phase_limit(set_a_paper):
     assert not s.detached and s.impact_rate_hz == 0.0
 
 
-def test_nonfinite_speed_rejected(set_a):
+def test_nonfinite_speed_rejected(set_a: MillModel) -> None:
     with pytest.raises(PhysicsInputError):
         revolution_summary(set_a, math.nan, 1.0)
 
@@ -70,12 +72,13 @@ def test_nonfinite_speed_rejected(set_a):
     ("field", "value"),
     [("rod_radius_m", -0.006), ("vial_radius_m", 0.005), ("n_rods", 10), ("restitution", 1.5), ("rod_mass_kg", 0.0)],
 )
-def test_invalid_physical_inputs_rejected(set_a, field, value):
+def test_invalid_physical_inputs_rejected(set_a: MillModel, field: str, value: float) -> None:
+    changes: dict[str, Any] = {field: value}
     with pytest.raises(PhysicsInputError):
-        dataclasses.replace(set_a, **{field: value})
+        dataclasses.replace(set_a, **changes)
 
 
-def test_packing_limit_is_exact(set_a):
+def test_packing_limit_is_exact(set_a: MillModel) -> None:
     """n at the packing limit: 2 r0 sin(π/n) = 2 r_r is allowed, a hair more rods' radius is not."""
     r_v = set_a.vial_radius_m
     # r0 sin(π/6) = r_r  ⇔  (r_v − r_r)/2 = r_r  ⇔  r_r = r_v/3
@@ -85,7 +88,7 @@ def test_packing_limit_is_exact(set_a):
         dataclasses.replace(set_a, rod_radius_m=r_v / 3 * (1 + 1e-9), n_rods=6)
 
 
-def test_summary_cache_rounds_to_its_grid(set_a_corrected):
+def test_summary_cache_rounds_to_its_grid(set_a_corrected: MillModel) -> None:
     from millctl.physics.telemetry import SummaryCache
 
     cache = SummaryCache(set_a_corrected, step_rpm=1.0)
@@ -96,7 +99,7 @@ def test_summary_cache_rounds_to_its_grid(set_a_corrected):
         SummaryCache(set_a_corrected, step_rpm=0.0)
 
 
-def test_start_angle_shortcut_matches_the_bottom_start(set_a_corrected):
+def test_start_angle_shortcut_matches_the_bottom_start(set_a_corrected: MillModel) -> None:
     """Starting each sample where detachment first becomes possible gives the same θ_d as starting at the bottom."""
     from millctl.physics.detachment import find_detachment
     from millctl.physics.model import Scene
@@ -112,14 +115,14 @@ def test_start_angle_shortcut_matches_the_bottom_start(set_a_corrected):
     assert find_detachment(later).theta_rad == pytest.approx(det.theta_rad, abs=1e-9)
 
 
-def test_critical_point_at_t0_does_not_stall_the_root_finder(set_a_paper):
+def test_critical_point_at_t0_does_not_stall_the_root_finder(set_a_paper: MillModel) -> None:
     """Regression: paper, 30/1000 rpm put a root of N' at t = 0, where a purely relative tolerance never converges."""
     s = revolution_summary(set_a_paper, rpm_to_rad_s(30.0), rpm_to_rad_s(1000.0))
     assert isinstance(s, RevolutionSummary)
 
 
 @pytest.mark.parametrize("variant", ["corrected", "paper"])
-def test_compiled_summary_is_the_reference_summary(set_a, variant):
+def test_compiled_summary_is_the_reference_summary(set_a: MillModel, variant: str) -> None:
     """The node's compiled level-(b) summary (issue 17) gives the numpy engine's numbers, field by field."""
     dc = dataclasses
     model = dc.replace(set_a, variant=ModelVariant(variant))

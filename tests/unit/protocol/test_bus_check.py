@@ -104,3 +104,35 @@ def test_the_links_bitrate_is_compared_with_the_configuration() -> None:
     assert link_problems(link, Bus(interface="socketcan", channel="can0", bitrate_bit_s=250_000)) == []
     vcan = parse_link(VCAN0)
     assert vcan.bitrate_bit_s is None and link_problems(vcan, Bus(interface="socketcan", channel="vcan0")) == []
+
+
+def test_the_service_warns_at_start_of_a_socketcan_link_at_another_bitrate(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from millctl.protocol import bus_check
+    from millctl.service.runtime import ServiceRuntime
+    from tests.support.service import write_config
+
+    socketcan = Bus(interface="socketcan", channel="can0", bitrate_bit_s=500_000)
+    calls: list[str] = []
+
+    def fake_read_link(channel: str) -> object:
+        calls.append(channel)
+        return parse_link(CAN0)
+
+    monkeypatch.setattr(bus_check, "read_link", fake_read_link)
+    assert bus_check.startup_link_problems(Bus(interface="virtual")) == [] and calls == []
+    expected = bus_check.startup_link_problems(socketcan)
+    assert calls == ["can0"] and expected[0].startswith("link can0 runs at 250000 bit/s")
+    monkeypatch.setattr(bus_check, "read_link", lambda channel: "`ip` (iproute2) is not installed")
+    assert bus_check.startup_link_problems(socketcan) == [], "an unreadable link is bus check's to explain"
+    # the service's start: the problem is a warning of the service and an event of kind bus
+    monkeypatch.setattr(bus_check, "startup_link_problems", lambda bus: expected)
+    runtime = ServiceRuntime(load_config(write_config(tmp_path)), embed_node=False)
+    try:
+        runtime.start()
+        assert runtime.describe().warnings == expected
+        events = [e for e in runtime.journal.after(0) if e["kind"] == "bus"]
+        assert [e["message"] for e in events] == expected
+    finally:
+        runtime.close()

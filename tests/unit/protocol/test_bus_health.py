@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Iterator
-from typing import Any
 
 import can
 import pytest
@@ -69,8 +68,12 @@ class FakePcan(can.BusABC):
         return self.code
 
     @property
-    def state(self) -> Any:
+    def state(self) -> can.BusState:
         raise AssertionError("pcan's state is the listen-only switch: it must never be read as the condition")
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        raise AssertionError("the controller must never switch pcan's listen-only mode")
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         raise NotImplementedError

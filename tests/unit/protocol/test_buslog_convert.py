@@ -10,7 +10,7 @@ import pytest
 
 from millctl.cli import main
 from millctl.errors import ExitCode
-from millctl.protocol import ControllerState, Heartbeat, NodeState, NodeStatus, default_codec
+from millctl.protocol import ControllerState, FaultCode, FaultFlag, Heartbeat, NodeState, NodeStatus, default_codec
 from millctl.protocol.buslog import RotatingBusLog
 
 CODEC = default_codec()
@@ -22,7 +22,7 @@ def _session(path: Path) -> list[can.Message]:
     for i in range(5):
         sent = CODEC.encode(Heartbeat(ControllerState.IDLE), counter=i)
         sent.is_rx = False
-        received = CODEC.encode(NodeStatus(NodeState.DISABLED, 0, 0), counter=i)
+        received = CODEC.encode(NodeStatus(NodeState.DISABLED, FaultFlag(0), FaultCode.NONE), counter=i)
         for offset, frame in enumerate((sent, received)):
             frame.timestamp = 1000.0 + 0.1 * i + 0.01 * offset
             frame.channel = "can0"

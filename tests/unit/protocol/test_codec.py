@@ -23,16 +23,19 @@ from millctl.protocol import (
     ControllerState,
     Decoded,
     EStop,
+    EStopSource,
     FaultCode,
     FaultFlag,
     Heartbeat,
     MillMessage,
+    NodeStatus,
     ProtocolError,
     Setpoints,
     SignalRangeError,
     default_codec,
     e2e_crc,
 )
+from millctl.protocol.codec import INFORMATIONAL_TABLE
 
 CODEC = default_codec()
 
@@ -107,7 +110,8 @@ def test_out_of_range_encode_is_refused_with_name_value_and_range(
     else:
         step = 1 if is_int else 0.5
         bad = low - step if side == "below" else top + step
-    message = dataclasses.replace(base, **{name: bad})
+    changes: dict[str, Any] = {name: bad}
+    message = dataclasses.replace(base, **changes)
     with pytest.raises(SignalRangeError) as caught:
         CODEC.encode(message)
     text = str(caught.value)
@@ -128,8 +132,10 @@ def test_values_outside_the_value_table_and_bad_counters_are_refused() -> None:
         CODEC.encode(Command(command=0))  # type: ignore[arg-type]
     with pytest.raises(SignalRangeError, match=r"Heartbeat\.counter = 16"):
         CODEC.encode(Heartbeat(ControllerState.IDLE), counter=16)
+    status = edge_message(NodeStatus, False)
+    assert isinstance(status, NodeStatus)
     with pytest.raises(SignalRangeError, match="refused_setpoints"):
-        CODEC.encode(dataclasses.replace(edge_message(MESSAGE_TYPES[4], False), refused_setpoints=1.5))
+        CODEC.encode(dataclasses.replace(status, refused_setpoints=1.5))  # type: ignore[arg-type]  # a count, not 1.5
 
 
 def test_estop_has_the_highest_priority_identifier() -> None:
@@ -137,6 +143,21 @@ def test_estop_has_the_highest_priority_identifier() -> None:
     others = [CODEC.frame_id(kind) for kind in MESSAGE_TYPES if kind is not EStop]
     assert min(others) > ESTOP_ID
     assert len(set(others)) == len(others)
+
+
+def test_estop_source_has_a_value_table_and_it_is_informational() -> None:
+    """The DBC names the sources (EStopSource); an E-stop from a source it does not name is still an E-stop."""
+    signal = CODEC.database.get_message_by_name("EStop").get_signal_by_name("source")
+    assert signal.choices is not None and signal.dbc is not None
+    assert {int(k): str(v) for k, v in signal.choices.items()} == {s.value: s.name for s in EStopSource}
+    assert signal.dbc.attributes[INFORMATIONAL_TABLE].value == 1
+    for source in (*EStopSource, 7, 255):
+        decoded = CODEC.decode(CODEC.encode(EStop(source)))
+        assert decoded.message == EStop(int(source))
+    foreign = can.Message(arbitration_id=ESTOP_ID, data=bytes([200, 0, 0, 0, 0, 0, 0, 0]), is_extended_id=False)
+    assert CODEC.decode(foreign).message == EStop(200)  # a button wired by someone else: decoded as sent
+    with pytest.raises(SignalRangeError, match=r"EStop\.source = 256"):
+        CODEC.encode(EStop(256))  # the range still holds
 
 
 def test_every_periodic_message_has_a_cycle_time_and_heartbeat_is_20_hz() -> None:

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from millctl.cli import main
+from millctl.config import MillConfig
 from millctl.errors import RecipeError
 from millctl.physics.dose import dose_rate_j_g_s
 from millctl.physics.model import MillModel
@@ -44,13 +46,13 @@ vibration_rpm = 0.0
 
 
 @pytest.fixture
-def dose_file(tmp_path):
+def dose_file(tmp_path: Path) -> Path:
     path = tmp_path / "dose.toml"
     path.write_text(DOSE_RECIPE)
     return path
 
 
-def test_plan_gives_the_expected_dose_and_time_of_each_step(dose_file, config):
+def test_plan_gives_the_expected_dose_and_time_of_each_step(dose_file: Path, config: MillConfig) -> None:
     plan = plan_recipe(load_recipe(dose_file).recipe, config)
     assert plan.ok and plan.powder_charge_g == 0.5
     hold = plan.steps[1]
@@ -63,7 +65,7 @@ def test_plan_gives_the_expected_dose_and_time_of_each_step(dose_file, config):
     assert plan.steps[0].dose_kj_g > 0.0 and plan.total_dose_kj_g > 0.002
 
 
-def test_recipe_plan_json_shows_the_dose_per_step(dose_file, capsys):
+def test_recipe_plan_json_shows_the_dose_per_step(dose_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--config", str(CONFIG_FILE), "recipe", "plan", str(dose_file), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)["result"]
     assert [s["dose_target_kj_g"] for s in data["steps"]] == [None, 0.002, None]
@@ -71,7 +73,9 @@ def test_recipe_plan_json_shows_the_dose_per_step(dose_file, capsys):
     assert data["powder_charge_g"] == 0.5 and data["total_dose_kj_g"] > 0.002
 
 
-def test_a_dose_at_a_point_without_impacts_is_refused_in_pre_flight(tmp_path, capsys):
+def test_a_dose_at_a_point_without_impacts_is_refused_in_pre_flight(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = tmp_path / "r.toml"
     path.write_text('[recipe]\nname = "x"\n[[steps]]\nkind = "hold"\ndose_kj_g = 1.0\n')
     assert main(["--config", str(CONFIG_FILE), "recipe", "check", str(path)]) == 2  # a pre-flight refusal
@@ -82,7 +86,7 @@ def test_a_dose_at_a_point_without_impacts_is_refused_in_pre_flight(tmp_path, ca
         load_recipe(path)
 
 
-def test_runner_ends_the_step_when_the_dose_is_reached(dose_file, config, tmp_path):
+def test_runner_ends_the_step_when_the_dose_is_reached(dose_file: Path, config: MillConfig, tmp_path: Path) -> None:
     rig = Rig(config)
     try:
         loaded = load_recipe(dose_file)

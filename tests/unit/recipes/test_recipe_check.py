@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from millctl.cli import main
-from millctl.config import load_config
+from millctl.config import MillConfig, load_config
 from millctl.errors import ExitCode, RecipeError
 from millctl.recipes import load_recipe, plan_recipe
 from tests.conftest import CONFIG_FILE, REPO
@@ -28,18 +28,18 @@ def write(tmp_path: Path, body: str) -> Path:
     return path
 
 
-def check(path: Path, capsys) -> tuple[int, str]:
+def check(path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     code = main(["--config", str(CONFIG_FILE), "recipe", "check", str(path)])
     return code, capsys.readouterr().err
 
 
 @pytest.mark.parametrize("recipe", RECIPES, ids=[p.stem for p in RECIPES])
-def test_shipped_recipes_pass(recipe, capsys):
+def test_shipped_recipes_pass(recipe: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, err = check(recipe, capsys)
     assert code == ExitCode.OK, err
 
 
-def test_demo_is_under_a_minute(config):
+def test_demo_is_under_a_minute(config: MillConfig) -> None:
     plan = plan_recipe(load_recipe(REPO / "config/recipes/demo.toml").recipe, config)
     assert 0 < plan.total_s < 60
 
@@ -57,7 +57,7 @@ def test_demo_is_under_a_minute(config):
     ],
     ids=["syntax", "unknown-key", "unit", "two-durations", "out-of-range", "unknown-kind", "no-steps"],
 )
-def test_invalid_recipe_is_named(tmp_path, capsys, body, pattern):
+def test_invalid_recipe_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, pattern: str) -> None:
     path = write(tmp_path, body)
     code, err = check(path, capsys)
     assert code == ExitCode.INVALID_INPUT
@@ -65,14 +65,14 @@ def test_invalid_recipe_is_named(tmp_path, capsys, body, pattern):
     assert str(path) in err
 
 
-def test_step_the_envelope_forbids(tmp_path, capsys):
+def test_step_the_envelope_forbids(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write(tmp_path, "[[steps]]\nkind = 'ramp'\nrotary_rpm = 250\nvibration_rpm = 800\n")
     code, err = check(path, capsys)
     assert code == ExitCode.INTERLOCK  # a refusal exits 2 from every command, as `set` does
     assert re.search(r"step 1 at t = 0\.0 s: ω_r = 250\.0 rpm exceeds the limit 190\.0 rpm .*law paper-eq9", err)
 
 
-def test_linear_ramp_crossing_the_limit_midway(tmp_path, capsys):
+def test_linear_ramp_crossing_the_limit_midway(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     body = (
         "[[steps]]\nkind = 'ramp'\nrotary_rpm = 140\nvibration_rpm = 0\n"
         "[[steps]]\nkind = 'ramp'\nrotary_rpm = 230\nvibration_rpm = 1200\npath = 'linear'\n"
@@ -85,7 +85,7 @@ def test_linear_ramp_crossing_the_limit_midway(tmp_path, capsys):
     assert code == ExitCode.OK, err
 
 
-def test_every_problem_is_listed(tmp_path):
+def test_every_problem_is_listed(tmp_path: Path) -> None:
     body = (
         "[[steps]]\nkind = 'ramp'\nrotary_rpm = 250\nvibration_rpm = 800\nfurnace_c = 1500\n"
         "heating_rate_c_per_min = 100\n"
@@ -100,17 +100,17 @@ def test_every_problem_is_listed(tmp_path):
     ]
 
 
-def test_wait_furnace_needs_a_setpoint(tmp_path, capsys):
+def test_wait_furnace_needs_a_setpoint(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, err = check(write(tmp_path, "[[steps]]\nkind = 'wait_furnace'\n"), capsys)
     assert code == ExitCode.INTERLOCK and "no furnace setpoint" in err  # refused by the pre-flight, as by the service
 
 
-def test_missing_file_is_a_recipe_error(tmp_path):
+def test_missing_file_is_a_recipe_error(tmp_path: Path) -> None:
     with pytest.raises(RecipeError, match="no such file"):
         load_recipe(tmp_path / "nope.toml")
 
 
-def test_plan_json_has_timeline_and_total(capsys):
+def test_plan_json_has_timeline_and_total(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--config", str(CONFIG_FILE), "recipe", "plan", "--json", str(REPO / "config/recipes/demo.toml")]) == 0
     data = json.loads(capsys.readouterr().out)["result"]
     assert [s["kind"] for s in data["steps"]] == ["ramp", "hold", "ramp", "hold"]

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from millctl.cli import main
+from millctl.config import MillConfig
 from millctl.errors import ExitCode, InvalidInputError
 from millctl.recipes import load_recipe, plan_recipe
 from millctl.recipes.runner import RecipeRunner, RunState
@@ -20,7 +21,7 @@ from tests.unit.scenarios.rig import Rig
 
 
 @pytest.fixture
-def demo_record(config: object, tmp_path: Path) -> Path:
+def demo_record(config: MillConfig, tmp_path: Path) -> Path:
     rig = Rig(config)
     try:
         loaded = load_recipe(DEMO)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused
 from millctl.errors import InterlockError
 from millctl.protocol import SimFaultCode
@@ -19,7 +21,7 @@ DEMO = REPO / "config" / "recipes" / "demo.toml"
 
 
 @pytest.fixture
-def rig(config):
+def rig(config: MillConfig) -> Iterator[Rig]:
     r = Rig(config)
     yield r
     r.close()
@@ -31,7 +33,7 @@ def runner_for(rig: Rig, path: Path, tmp_path: Path) -> RecipeRunner:
     return RecipeRunner(rig.controller, loaded, plan, rig.clock, records_dir=tmp_path, config_sha256="0" * 64)
 
 
-def drive(rig: Rig, runner: RecipeRunner, seconds: float, until=None) -> None:
+def drive(rig: Rig, runner: RecipeRunner, seconds: float, until: Callable[[], bool] | None = None) -> None:
     for _ in range(round(seconds / rig.dt_s)):
         if runner.finished or (until is not None and until()):
             return
@@ -43,7 +45,7 @@ def events(runner: RecipeRunner) -> list[str]:
     return [r["event"] for r in read_records(runner.record.path)]
 
 
-def test_demo_runs_to_done_with_a_complete_record(rig, tmp_path):
+def test_demo_runs_to_done_with_a_complete_record(rig: Rig, tmp_path: Path) -> None:
     runner = runner_for(rig, DEMO, tmp_path)
     drive(rig, runner, 120.0)
     assert runner.state is RunState.DONE, runner.reason
@@ -60,7 +62,7 @@ def test_demo_runs_to_done_with_a_complete_record(rig, tmp_path):
     assert records[-1]["elapsed_s"] < runner.plan.total_s + 20.0
 
 
-def test_pause_now_freezes_the_step_clock_and_resume_continues(rig, tmp_path):
+def test_pause_now_freezes_the_step_clock_and_resume_continues(rig: Rig, tmp_path: Path) -> None:
     runner = runner_for(rig, DEMO, tmp_path)
     drive(rig, runner, 60.0, until=lambda: runner.progress()["kind"] == "hold" and runner.index == 1)
     drive(rig, runner, 2.0)
@@ -76,7 +78,7 @@ def test_pause_now_freezes_the_step_clock_and_resume_continues(rig, tmp_path):
     assert "pause" in events(runner) and "resume" in events(runner)
 
 
-def test_pause_at_the_next_boundary(rig, tmp_path):
+def test_pause_at_the_next_boundary(rig: Rig, tmp_path: Path) -> None:
     runner = runner_for(rig, DEMO, tmp_path)
     drive(rig, runner, 3.0)
     runner.pause()
@@ -89,7 +91,7 @@ def test_pause_at_the_next_boundary(rig, tmp_path):
     assert runner.state is RunState.DONE
 
 
-def test_abort_ramps_down_inside_the_envelope(rig, tmp_path):
+def test_abort_ramps_down_inside_the_envelope(rig: Rig, tmp_path: Path) -> None:
     runner = runner_for(rig, DEMO, tmp_path)
     drive(rig, runner, 60.0, until=lambda: runner.index == 3)
     runner.abort()
@@ -102,7 +104,7 @@ def test_abort_ramps_down_inside_the_envelope(rig, tmp_path):
     assert list(read_records(runner.record.path))[-1]["status"] == "ABORTED"
 
 
-def test_a_trip_mid_recipe_fails_the_run_with_its_cause(rig, tmp_path):
+def test_a_trip_mid_recipe_fails_the_run_with_its_cause(rig: Rig, tmp_path: Path) -> None:
     runner = runner_for(rig, DEMO, tmp_path)
     drive(rig, runner, 60.0, until=lambda: runner.index == 3)
     rig.inject(SimFaultCode.VIB_STALL)
@@ -114,7 +116,7 @@ def test_a_trip_mid_recipe_fails_the_run_with_its_cause(rig, tmp_path):
     assert last[-1]["status"] == "FAILED"
 
 
-def test_a_recipe_that_fails_preflight_cannot_start(rig, tmp_path):
+def test_a_recipe_that_fails_preflight_cannot_start(rig: Rig, tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text('[recipe]\nname = "x"\n[[steps]]\nkind = "ramp"\nrotary_rpm = 250\nvibration_rpm = 800\n')
     with pytest.raises(InterlockError, match=r"bad\.toml does not pass its pre-flight: .*250") as raised:

@@ -53,9 +53,9 @@ class Rig:
         if controller_bus is not None:
             self._buses[1].shutdown()
             self._buses[1] = controller_bus(channel)
-        node_bus, controller_bus, self.probe = self._buses
+        node_bus, controllers_bus, self.probe = self._buses
         self.node = Node(config, node_bus, self.clock, fault_injection=fault_injection, seed=seed)
-        self.controller = Controller(config, controller_bus, self.clock, listener=self.events.append)
+        self.controller = Controller(config, controllers_bus, self.clock, listener=self.events.append)
         self.trace = Trace()
         self.node_alive = True
 

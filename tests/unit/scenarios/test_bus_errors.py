@@ -83,6 +83,10 @@ class StatefulVirtualBus(VirtualBus):
     def state(self) -> can.BusState:
         return self.bus_state
 
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.bus_state = new_state
+
 
 def test_a_bus_whose_state_goes_to_error_trips_the_controller(config: MillConfig) -> None:
     buses: list[StatefulVirtualBus] = []

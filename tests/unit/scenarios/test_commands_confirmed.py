@@ -7,9 +7,11 @@ is the adversary: it forges commands with counters the node will take.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import ControllerState as S
 from millctl.controller import EventKind
 from millctl.protocol import (
@@ -22,11 +24,12 @@ from millctl.protocol import (
     RefusalCode,
     Setpoints,
 )
+from millctl.protocol.receive import Batch
 from tests.unit.scenarios.rig import Rig
 
 
 @pytest.fixture
-def rig(config):
+def rig(config: MillConfig) -> Iterator[Rig]:
     r = Rig(config)
     yield r
     r.close()
@@ -42,7 +45,9 @@ def next_counter(rig: Rig, kind: type[MillMessage]) -> int:
     return rig.controller._counters[kind].value
 
 
-def test_a_stop_dropped_as_not_fresh_after_a_forged_disarm_is_repeated_and_the_mill_stops(rig, config):
+def test_a_stop_dropped_as_not_fresh_after_a_forged_disarm_is_repeated_and_the_mill_stops(
+    rig: Rig, config: MillConfig
+) -> None:
     """The seen defect: a forged DISARM takes the STOP's counter, the node drops the STOP as NOT_FRESH,
     and the mill kept 60/300 rpm for ≥ 20 s while the controller said STOPPING."""
     rig.start(60.0, 300.0)
@@ -60,9 +65,11 @@ def test_a_stop_dropped_as_not_fresh_after_a_forged_disarm_is_repeated_and_the_m
     assert max(rig.node.true_speeds_rpm) < 1.0
 
 
-def test_a_stop_the_node_never_confirms_escalates_to_an_estop(rig, config):
+def test_a_stop_the_node_never_confirms_escalates_to_an_estop(
+    rig: Rig, config: MillConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
     rig.start(60.0, 300.0)
-    rig.node._stop = lambda now: RefusalCode.NONE  # type: ignore[method-assign]  # the node ignores STOP
+    monkeypatch.setattr(rig.node, "_stop", lambda now: RefusalCode.NONE)  # the node ignores STOP
     rig.controller.stop()
     t_stop = rig.clock.now()
     rig.run(3.0, until=lambda: rig.controller.state is S.TRIPPED)
@@ -76,16 +83,18 @@ def test_a_stop_the_node_never_confirms_escalates_to_an_estop(rig, config):
     assert max(rig.node.true_speeds_rpm) < 1.0
 
 
-def test_an_estop_is_repeated_until_the_node_reports_it(rig, config):
+def test_an_estop_is_repeated_until_the_node_reports_it(
+    rig: Rig, config: MillConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
     rig.start(60.0, 300.0)
     drain = rig.node.reader.drain
     lost_until_s = rig.clock.now() + 0.5
 
-    def lossy_drain():  # the first E-stop frames never reach the node
+    def lossy_drain() -> Batch:  # the first E-stop frames never reach the node
         batch = drain()
         return dataclasses.replace(batch, estop=False) if rig.clock.now() < lost_until_s else batch
 
-    rig.node.reader.drain = lossy_drain  # type: ignore[method-assign]
+    monkeypatch.setattr(rig.node.reader, "drain", lossy_drain)
     rig.controller.estop()
     rig.run(0.4)
     assert FaultFlag.ESTOP not in rig.node.fault_bits
@@ -97,7 +106,7 @@ def test_an_estop_is_repeated_until_the_node_reports_it(rig, config):
     assert rig.controller.estops_sent == sent  # reported: no more repeats
 
 
-def test_a_forged_reset_and_arm_after_an_estop_is_met_with_another_estop(rig, config):
+def test_a_forged_reset_and_arm_after_an_estop_is_met_with_another_estop(rig: Rig, config: MillConfig) -> None:
     """The seen defect: a forged RESET+ARM after an E-stop restarted the mill while the controller stayed TRIPPED."""
     rig.start(120.0, 400.0)
     rig.controller.estop()
@@ -126,7 +135,7 @@ def test_a_forged_reset_and_arm_after_an_estop_is_met_with_another_estop(rig, co
     assert any("did not command" in e.message for e in estops), [e.message for e in estops]
 
 
-def test_the_measured_speed_is_checked_in_tripped(rig, config):
+def test_the_measured_speed_is_checked_in_tripped(rig: Rig, config: MillConfig) -> None:
     """A drive that speeds up while the controller is TRIPPED is an E-stop (the check runs in every state)."""
     from millctl.protocol import SimFaultCode
 
@@ -141,7 +150,7 @@ def test_the_measured_speed_is_checked_in_tripped(rig, config):
     assert "measured ω_r" in event.message
 
 
-def test_a_forged_setpoint_that_moves_a_disabled_mill_trips(rig):
+def test_a_forged_setpoint_that_moves_a_disabled_mill_trips(rig: Rig) -> None:
     rig.start(0.0, 0.0)  # ARMED at standstill, nothing commanded
     forge(rig, Setpoints(3.0, 12.0, 25.0, False), next_counter(rig, Setpoints))  # a step the node accepts
     rig.run(1.0, until=lambda: rig.controller.state is S.TRIPPED)

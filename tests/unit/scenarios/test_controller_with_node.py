@@ -7,12 +7,14 @@ safety behaviour the operator relies on.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused
 from millctl.controller import ControllerState as S
 from millctl.protocol import EStop, FaultFlag, NodeState, SimFaultCode
@@ -21,7 +23,7 @@ from tests.unit.scenarios.rig import Rig
 
 
 @pytest.fixture
-def rig(config):
+def rig(config: MillConfig) -> Iterator[Rig]:
     r = Rig(config)
     yield r
     r.close()
@@ -35,7 +37,7 @@ def outside_envelope(rig: Rig) -> list[tuple[float, float, float]]:
     return [(rig.trace.t_s[i], w_r[i], w_v[i]) for i in np.flatnonzero(bad)]
 
 
-def test_startup_ramp_steady_milling_and_controlled_stop(rig):
+def test_startup_ramp_steady_milling_and_controlled_stop(rig: Rig) -> None:
     rig.start(180.0, 800.0)
     assert rig.controller.state is S.RUNNING
     w_r, w_v = rig.node.true_speeds_rpm
@@ -52,7 +54,7 @@ def test_startup_ramp_steady_milling_and_controlled_stop(rig):
     assert rig.node.refused_setpoints == 0
 
 
-def test_over_limit_request_refused_and_mill_untouched(rig):
+def test_over_limit_request_refused_and_mill_untouched(rig: Rig) -> None:
     rig.start(180.0, 800.0)
     before = rig.node.last_setpoint
     with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm at ω_v = 800\.0 rpm"):
@@ -63,7 +65,7 @@ def test_over_limit_request_refused_and_mill_untouched(rig):
     assert rig.node.refused_setpoints == 0
 
 
-def test_vibration_stall_mid_run_trips_and_stops_inside_the_envelope(rig, config):
+def test_vibration_stall_mid_run_trips_and_stops_inside_the_envelope(rig: Rig, config: MillConfig) -> None:
     rig.start(180.0, 800.0)
     rig.inject(SimFaultCode.VIB_STALL)
     t_stall = rig.clock.now()
@@ -81,7 +83,7 @@ def test_vibration_stall_mid_run_trips_and_stops_inside_the_envelope(rig, config
     assert all(b <= a + 0.5 for a, b in itertools.pairwise(rotary))
 
 
-def test_node_silence_trips_the_controller(rig, config):
+def test_node_silence_trips_the_controller(rig: Rig, config: MillConfig) -> None:
     rig.start(120.0, 400.0)
     rig.inject(SimFaultCode.NODE_SILENT)
     elapsed = rig.run(5.0, until=lambda: rig.controller.state is S.TRIPPED)
@@ -92,10 +94,12 @@ def test_node_silence_trips_the_controller(rig, config):
     assert elapsed <= worst + 2 * config.timing.controller_tick_s + 0.1
 
 
-def test_controller_silence_stops_the_node_within_the_watchdog_bound(rig, config):
+def test_controller_silence_stops_the_node_within_the_watchdog_bound(
+    rig: Rig, config: MillConfig, monkeypatch: pytest.MonkeyPatch
+) -> None:
     rig.start(120.0, 400.0)
     t_last = rig.clock.now()
-    rig.controller.tick = lambda: None  # the control loop hangs: no more heartbeats
+    monkeypatch.setattr(rig.controller, "tick", lambda: None)  # the control loop hangs: no more heartbeats
     rig.run(2.0, until=lambda: rig.node.state is NodeState.FAULT)
     assert FaultFlag.WATCHDOG in rig.node.fault_bits
     assert rig.clock.now() - t_last <= config.timing.watchdog_timeout_s + 2 * config.timing.node_tick_s
@@ -104,7 +108,7 @@ def test_controller_silence_stops_the_node_within_the_watchdog_bound(rig, config
     assert outside_envelope(rig) == []
 
 
-def test_estop_from_a_bystander(rig):
+def test_estop_from_a_bystander(rig: Rig) -> None:
     rig.start(120.0, 400.0)
     rig.probe.send(rig.codec.encode(EStop(7)))
     rig.run(1.0, until=lambda: rig.controller.state is S.TRIPPED)
@@ -113,7 +117,7 @@ def test_estop_from_a_bystander(rig):
     assert max(rig.node.true_speeds_rpm) < 1.0
 
 
-def test_reset_procedure(rig):
+def test_reset_procedure(rig: Rig) -> None:
     rig.start(120.0, 400.0)
     rig.inject(SimFaultCode.VIB_STALL)
     rig.run(5.0, until=lambda: rig.controller.state is S.TRIPPED)
@@ -133,7 +137,7 @@ def test_reset_procedure(rig):
     assert rig.controller.state is S.ARMED
 
 
-def test_a_set_with_a_refused_furnace_target_applies_no_part(rig):
+def test_a_set_with_a_refused_furnace_target_applies_no_part(rig: Rig) -> None:
     """Issue 15 item 7: speeds and furnace are checked whole; a refused furnace target leaves the speeds untouched."""
     rig.start(0.0, 0.0)
     with pytest.raises(InterlockRefused, match=r"furnace setpoint 5000\.0 °C is outside"):
@@ -153,7 +157,9 @@ def test_a_set_with_a_refused_furnace_target_applies_no_part(rig):
 @given(
     moves=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(0, 1100), st.booleans()), min_size=1, max_size=3)
 )
-def test_the_planner_never_sends_what_the_node_refuses(config, moves):
+def test_the_planner_never_sends_what_the_node_refuses(
+    config: MillConfig, moves: list[tuple[float, int, bool]]
+) -> None:
     """SAFETY 13: controller and node share one limit module; random moves, sequenced or linear, are never refused."""
     rig = Rig(config)
     try:

@@ -21,7 +21,7 @@ from millctl.client import (
     raise_for_error,
 )
 from millctl.config import load_config
-from millctl.errors import ExitCode
+from millctl.errors import ExitCode, MillctlError
 from millctl.service import ServiceRuntime, create_app
 from tests.support.service import write_config
 
@@ -43,13 +43,13 @@ def _response(status: int, body: dict[str, object]) -> httpx.Response:
     ],
 )
 def test_api_errors_map_to_exceptions_with_their_exit_codes(
-    status: int, code: str, error: type[Exception], exit_code: ExitCode
+    status: int, code: str, error: type[MillctlError], exit_code: ExitCode
 ) -> None:
-    body = {"code": code, "message": "because", "field": "body.rotary_rpm", "holder": "api:tui",
+    body: dict[str, object] = {"code": code, "message": "because", "field": "body.rotary_rpm", "holder": "api:tui",
             "refusals": [{"quantity": "omega_r", "value": 250.0, "limit": 190.0, "unit": "rpm", "reason": "r"}]}
     with pytest.raises(error) as raised:
         raise_for_error(_response(status, body), "service socket /x")
-    assert raised.value.exit_code is exit_code  # type: ignore[attr-defined]
+    assert raised.value.exit_code is exit_code
     if isinstance(raised.value, InterlockRefusal):
         assert raised.value.refusals[0].limit == 190.0
     if isinstance(raised.value, ControlHeld):

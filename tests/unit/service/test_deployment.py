@@ -82,7 +82,7 @@ def api(tmp_path: Path) -> Iterator[httpx.AsyncClient]:
 
 async def test_a_non_ascii_lease_header_and_nul_bytes_are_4xx(api: httpx.AsyncClient) -> None:
     for lease in ("lé-ase".encode("latin-1"), b"\xff\xfe", b"a\x00b"):
-        response = await api.post("/v1/arm", headers={"X-Millctl-Lease": lease})
+        response = await api.post("/v1/arm", headers={b"X-Millctl-Lease": lease})
         assert response.status_code == 422, (lease, response.text)
         assert response.json()["field"] == "header.x-millctl-lease"
     taken = (await api.post("/v1/control/take")).json()["lease_id"]

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.studies import (
     DaskBackend,
     LocalBackend,
@@ -17,11 +21,12 @@ from millctl.studies import (
     load_study,
     pareto_front,
 )
-from millctl.studies.run import grid_points
+from millctl.studies.backends import Backend
+from millctl.studies.run import StudyResult, grid_points
 from tests.unit.studies.conftest import write
 
 
-def same_rows(a, b):
+def same_rows(a: Sequence[dict[str, Any]], b: Sequence[dict[str, Any]]) -> None:
     """Equal point for point: every column, NaN equal to NaN, floats bit for bit."""
     assert len(a) == len(b)
     for x, y in zip(a, b, strict=True):
@@ -31,10 +36,16 @@ def same_rows(a, b):
             assert both_nan or x[k] == y[k], (k, x[k], y[k])
 
 
-def run(path, config, backend=None, store=None, **kw):
+def run(
+    path: Path,
+    config: MillConfig,
+    backend: Backend | None = None,
+    store: ResultsStore | None = None,
+    batch_size: int | None = None,
+) -> StudyResult:
     study = load_study(path)
     check_parameters(study, config, str(path))
-    runner = StudyRunner(study, config, str(path), **kw)
+    runner = StudyRunner(study, config, str(path), batch_size=batch_size)
     if store is not None:
         store.fingerprint = runner.fingerprint
         store.resume()
@@ -42,7 +53,7 @@ def run(path, config, backend=None, store=None, **kw):
     return runner.run(backend or SerialBackend())
 
 
-def test_grid_study_on_set_a(grid_file, config):
+def test_grid_study_on_set_a(grid_file: Path, config: MillConfig) -> None:
     result = run(grid_file, config)
     assert [(r["rotary_rpm"], r["vibration_rpm"]) for r in result.rows] == [
         (80.0, 400.0), (80.0, 800.0), (180.0, 400.0), (180.0, 800.0), (280.0, 400.0), (280.0, 800.0),
@@ -60,7 +71,7 @@ def test_grid_study_on_set_a(grid_file, config):
     assert all(r["events"] > 0 for r in feasible)
 
 
-def test_optimiser_study_on_set_a(optimiser_file, config):
+def test_optimiser_study_on_set_a(optimiser_file: Path, config: MillConfig) -> None:
     first = run(optimiser_file, config)
     again = run(optimiser_file, config)
     same_rows(first.rows, again.rows)  # seeded: the same points in the same order
@@ -71,7 +82,7 @@ def test_optimiser_study_on_set_a(optimiser_file, config):
     assert 60.0 <= best["rotary_rpm"] <= 300.0
 
 
-def test_backends_give_identical_results(grid_file, config):
+def test_backends_give_identical_results(grid_file: Path, config: MillConfig) -> None:
     serial = run(grid_file, config, SerialBackend())
     local = LocalBackend(2)
     try:
@@ -94,13 +105,13 @@ class Interrupt(Exception):
 
 
 @pytest.mark.parametrize("suffix", [".parquet", ".csv"])
-def test_resume_after_interruption(grid_file, config, tmp_path, suffix):
+def test_resume_after_interruption(grid_file: Path, config: MillConfig, tmp_path: Path, suffix: str) -> None:
     path = tmp_path / f"results{suffix}"
     study = load_study(grid_file)
     runner = StudyRunner(study, config, str(grid_file), batch_size=2)
     runner.store = ResultsStore(path, runner.fingerprint)
 
-    def stop_after_first_batch(done, total):
+    def stop_after_first_batch(done: int, total: int) -> None:
         if done >= 2:
             raise Interrupt
 
@@ -114,7 +125,7 @@ def test_resume_after_interruption(grid_file, config, tmp_path, suffix):
     same_rows(fresh.rows, resumed.rows)
 
 
-def test_csv_drops_a_cut_off_last_row(grid_file, config, tmp_path):
+def test_csv_drops_a_cut_off_last_row(grid_file: Path, config: MillConfig, tmp_path: Path) -> None:
     path = tmp_path / "r.csv"
     store = ResultsStore(path, "x")
     result = run(grid_file, config, store=store)
@@ -124,14 +135,16 @@ def test_csv_drops_a_cut_off_last_row(grid_file, config, tmp_path):
     assert again.resume() == len(result.rows) - 1
 
 
-def test_results_of_another_study_are_refused(grid_file, optimiser_file, config, tmp_path):
+def test_results_of_another_study_are_refused(
+    grid_file: Path, optimiser_file: Path, config: MillConfig, tmp_path: Path
+) -> None:
     path = tmp_path / "r.parquet"
     run(grid_file, config, store=ResultsStore(path, "x"))
     with pytest.raises(Exception, match="another study"):
         run(optimiser_file, config, store=ResultsStore(path, "x"))
 
 
-def test_pareto_front_keeps_only_undominated_points():
+def test_pareto_front_keeps_only_undominated_points() -> None:
     rows = [
         {"point": 0, "feasible": True, "a": 1.0, "b": 5.0},
         {"point": 1, "feasible": True, "a": 2.0, "b": 4.0},
@@ -163,14 +176,14 @@ def test_pareto_front_keeps_only_undominated_points():
         ),
     ],
 )
-def test_bad_study_files_name_file_field_and_value(tmp_path, text, expected):
+def test_bad_study_files_name_file_field_and_value(tmp_path: Path, text: str, expected: str) -> None:
     path = write(tmp_path, "bad.toml", text)
     with pytest.raises(StudyError) as err:
         load_study(path)
     assert str(path) in str(err.value) and expected in str(err.value)
 
 
-def test_unknown_metric_material_and_missing_speed(tmp_path, config):
+def test_unknown_metric_material_and_missing_speed(tmp_path: Path, config: MillConfig) -> None:
     text = (
         '[study]\nname = "x"\n[parameters.rotary_rpm]\nvalues = [100]\n[parameters.rod_material]\n'
         'values = ["unobtainium"]\n[metrics]\nnames = ["power"]\n[objective]\nmaximize = "gamma"\n'
@@ -184,7 +197,7 @@ def test_unknown_metric_material_and_missing_speed(tmp_path, config):
         StudyRunner(study, config, str(path))
 
 
-def test_a_mill_that_cannot_exist_is_an_infeasible_point_with_its_reason(tmp_path, config):
+def test_a_mill_that_cannot_exist_is_an_infeasible_point_with_its_reason(tmp_path: Path, config: MillConfig) -> None:
     text = (
         '[study]\nname = "x"\nrotary_rpm = 100\nvibration_rpm = 800\n[parameters.n_rods]\nvalues = [6, 10]\n'
         '[objective]\nmaximize = "milling_power_w"\n'
@@ -195,7 +208,7 @@ def test_a_mill_that_cannot_exist_is_an_infeasible_point_with_its_reason(tmp_pat
     assert "packing limit" in result.rows[1]["violations"]
 
 
-def test_grid_points_round_integer_parameters(tmp_path, config):
+def test_grid_points_round_integer_parameters(tmp_path: Path, config: MillConfig) -> None:
     text = (
         '[study]\nname = "x"\nrotary_rpm = 100\nvibration_rpm = 800\n[parameters.n_rods]\n'
         'grid = { start = 2, stop = 4, num = 5 }\n[objective]\nmaximize = "gamma"\n'
@@ -204,7 +217,9 @@ def test_grid_points_round_integer_parameters(tmp_path, config):
     assert [p["n_rods"] for p in points] == [2, 2, 3, 4, 4]
 
 
-def test_a_study_without_a_results_file_writes_nothing(grid_file, config, tmp_path, monkeypatch):
+def test_a_study_without_a_results_file_writes_nothing(
+    grid_file: Path, config: MillConfig, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.chdir(tmp_path)
     written = []
     monkeypatch.setattr("millctl.studies.store.write_atomically", lambda path, write: written.append(path))
@@ -213,7 +228,7 @@ def test_a_study_without_a_results_file_writes_nothing(grid_file, config, tmp_pa
 
 
 @pytest.mark.parametrize("kind", ["fifo", "directory"])
-def test_results_are_never_renamed_over_a_pipe_or_a_directory(tmp_path, kind):
+def test_results_are_never_renamed_over_a_pipe_or_a_directory(tmp_path: Path, kind: str) -> None:
     # A pipe or a directory made here, never a shared device: a regression must not replace /dev/null.
     import os
 

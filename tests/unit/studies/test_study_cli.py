@@ -3,22 +3,36 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 
 from millctl.cli import main
+from millctl.config import MillConfig
 from millctl.studies import SerialBackend, Study, StudyRunner, load_study
 from tests.conftest import CONFIG_FILE, REPO
 
 STUDIES = REPO / "config" / "studies"
 
 
-def study(capsys, *args):
+class Printed(NamedTuple):
+    """What a command printed."""
+
+    out: str
+    err: str
+
+
+def study(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, Printed]:
+    """``millctl study ARGS``: its exit code and what it printed."""
     code = main(["--config", str(CONFIG_FILE), "study", *map(str, args)])
-    return code, capsys.readouterr()
+    captured = capsys.readouterr()
+    return code, Printed(captured.out, captured.err)
 
 
-def test_json_then_resume_then_figures_pareto_and_recipe(grid_file, tmp_path, capsys):
+def test_json_then_resume_then_figures_pareto_and_recipe(
+    grid_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "r.csv"
     code, res = study(capsys, grid_file, "--out", out, "--workers", "1", "--json")
     assert code == 0, res.err
@@ -43,14 +57,14 @@ def test_json_then_resume_then_figures_pareto_and_recipe(grid_file, tmp_path, ca
     assert "dose_kj_g = 0.5" in text and f"rotary_rpm = {first['best']['rotary_rpm']!r}" in text
 
 
-def test_table_on_stdout_summary_on_stderr(grid_file, tmp_path, capsys):
+def test_table_on_stdout_summary_on_stderr(grid_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, res = study(capsys, grid_file, "--out", tmp_path / "r.parquet", "--workers", "1", "--top", "2")
     assert code == 0
     assert "best 2 of" in res.out and "dose_rate_j_g_s" in res.out
     assert "6 points (6 computed, 0 from" in res.err
 
 
-def test_bad_arguments_exit_1(grid_file, tmp_path, capsys):
+def test_bad_arguments_exit_1(grid_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, res = study(capsys, grid_file, "--out", tmp_path / "r.csv", "--pareto", "milling_power_w")
     assert code == 1 and "--pareto" in res.err
     code, res = study(capsys, tmp_path / "missing.toml")
@@ -61,13 +75,14 @@ def test_bad_arguments_exit_1(grid_file, tmp_path, capsys):
     ("name", "best"),
     [("paper-operating-point.toml", (188.0, 800.0)), ("corrected-operating-point.toml", None)],
 )
-def test_shipped_studies_near_the_papers_point(name, best, config):
+def test_shipped_studies_near_the_papers_point(name: str, best: tuple[float, float] | None, config: MillConfig) -> None:
     """The shipped studies on a few points around the paper's 200/800 rpm (the full grids run from the CLI)."""
     data = load_study(STUDIES / name).model_dump(mode="json")
     data["parameters"] = {"rotary_rpm": {"values": [184.0, 188.0, 192.0]}, "vibration_rpm": {"values": [750.0, 800.0]}}
     small = Study.model_validate(data)
     result = StudyRunner(small, config, name).run(SerialBackend())
     if best is not None:
+        assert result.best is not None, "no feasible point among the shipped study's"
         # the paper's reasoning reproduces its conclusion: 200/800 less the interlock's 5 % margin
         assert (result.best["rotary_rpm"], result.best["vibration_rpm"]) == best
         # ... where the paper's own model, run in time, and the corrected laws disagree

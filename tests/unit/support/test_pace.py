@@ -17,10 +17,10 @@ class FakeLoad:
         self.file = tmp_path / "loadavg"
         self.now = 100.0
         self.set(0.0, 1)
-        real_path = pace.Path
+        real_path = Path
         monkeypatch.setattr(pace, "Path", lambda p: self.file if p == "/proc/loadavg" else real_path(p))
-        monkeypatch.setattr(pace.os, "cpu_count", lambda: cpus)
-        monkeypatch.setattr(pace.time, "monotonic", lambda: self.now)
+        monkeypatch.setattr("tests.support.pace.os.cpu_count", lambda: cpus)
+        monkeypatch.setattr("tests.support.pace.time.monotonic", lambda: self.now)
         monkeypatch.delenv("MILLCTL_TIME_SCALE", raising=False)
 
     def set(self, load_1min: float, runnable: int) -> None:

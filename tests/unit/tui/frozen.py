@@ -8,7 +8,7 @@ from typing import Any
 
 import httpx
 
-from millctl.api import ControlOut, EnvelopeOut, EventOut, RecipeOut, StatusOut
+from millctl.api import ControlOut, EnvelopeOut, EventOut, RecipeOut, ServiceOut, StatusOut
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.service import ServiceRuntime, create_app
@@ -92,3 +92,14 @@ EVENTS = [EventOut.model_validate({"time_s": None, "data": {}, **e}) for e in [
      "message": "ω_r = 250.0 rpm exceeds the limit 190.0 rpm at ω_v = 800.0 rpm"},
 ]]
 ENVELOPE = envelope_answer()
+
+
+def service_answer(*, fault_injection: bool = False) -> ServiceOut:
+    """What ``GET /v1/service`` answers for a simulated mill (fixed pid, times and paths)."""
+    return ServiceOut(
+        mill_name="vibratory rod mill, Set A", simulated=True, pid=4242, version="0", started_unix=T0_UNIX,
+        config_path="/etc/millctl/mill.toml", config_sha256="0" * 64, law="paper-eq9", margin=0.05,
+        bus_interface="virtual", bus_channel="millbus", embedded_node=True, socket_path=SOCKET,
+        records_dir="/var/lib/millctl/records", bus_log="/var/lib/millctl/records/bus/millbus.log",
+        fault_injection=fault_injection,
+    )

@@ -8,6 +8,7 @@ import httpx
 import pytest
 
 from millctl.client import ControlHeld, InterlockRefusal, ServiceUnavailable, raise_for_error
+from millctl.errors import MillctlError
 from millctl.tui.format import duration, e2e_errors
 from millctl.tui.link import describe
 from millctl.tui.modals import InputError, parse_request
@@ -53,8 +54,9 @@ def test_setpoint_fields() -> None:
             parse_request(*bad)
 
 
-def _error(status: int, body: dict[str, object]) -> Exception:
-    with pytest.raises(Exception) as raised:
+def _error(status: int, body: dict[str, object]) -> MillctlError:
+    """The error the client raises for this answer (one of millctl's own: a crash would fail here)."""
+    with pytest.raises(MillctlError) as raised:
         raise_for_error(httpx.Response(status, json=body), "service socket /x")
     return raised.value
 

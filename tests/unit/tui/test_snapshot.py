@@ -9,15 +9,21 @@ from typing import Any
 import pytest
 from textual.geometry import Region
 from textual.pilot import Pilot
-from textual.widgets import Static
+from textual.widget import Widget
+from textual.widgets import Checkbox, Input, Static
 
-from millctl.config import LimitLaw
+from millctl.api import CheckOut
+from millctl.config import LimitLaw, load_config
+from millctl.config.loader import packaged_file
+from millctl.safety import Envelope
 from millctl.tui import MillApp
 from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.legible import MIN_CONTRAST, contrast
+from millctl.tui.modals import SetpointsModal, SetRequest
 from tests.unit.tui import frozen
 
 SIZE = (120, 40)
+ENVELOPE = Envelope.from_config(load_config(packaged_file("mill.toml")).config)
 
 
 @pytest.fixture
@@ -76,7 +82,7 @@ async def test_at_80_by_24_every_panel_is_on_screen() -> None:
 def _low_contrast(app: MillApp) -> list[tuple[float, str, str]]:
     """Every text segment on screen whose foreground is below 4.5:1 against its background (box lines aside)."""
     found = []
-    for widget in app.screen.walk_children():
+    for widget in app.screen.walk_children(Widget):
         if not widget.display or not widget.region:
             continue
         for strip in widget.render_lines(Region(0, 0, widget.region.width, widget.region.height)):
@@ -86,7 +92,7 @@ def _low_contrast(app: MillApp) -> list[tuple[float, str, str]]:
                     continue
                 if all(0x2500 <= ord(ch) < 0x2600 for ch in text):
                     continue
-                ratio = contrast(tuple(style.color.get_truecolor()), tuple(style.bgcolor.get_truecolor()))
+                ratio = contrast(style.color.get_truecolor(), style.bgcolor.get_truecolor())
                 if ratio < MIN_CONTRAST or style.dim:
                     found.append((round(ratio, 2), text[:20], type(widget).__name__))
     return found
@@ -142,3 +148,48 @@ async def test_envelope_view_follows_the_status_and_goes_back() -> None:
         await pilot.press("escape")
         await pilot.pause()
         assert not isinstance(app.screen, EnvelopeScreen)
+
+
+async def envelope_check(rotary_rpm: float, vibration_rpm: float, temp_c: float | None) -> CheckOut:
+    """The service's ``POST /v1/envelope/check`` verdict, from the packaged config's own envelope, in-process."""
+    verdict = ENVELOPE.check(rotary_rpm, vibration_rpm, temp_c)
+    return CheckOut(ok=verdict.ok, reason=verdict.reason(), limit_rotary_rpm=verdict.omega_r_limit_rpm,
+                    margin_rpm=verdict.margin_rpm, refusals=[])
+
+
+def test_set_dialog_with_ramp_rates_and_the_linear_path(snap_compare: Any, utc: None) -> None:
+    """The set dialog offers both ramp rates and the linear path, and shows the interlock's limit and verdict."""
+    app = MillApp(frozen.SOCKET, live=False)
+
+    async def run(pilot: Pilot[None]) -> None:
+        await feeder(app)(pilot)
+        app.push_screen(SetpointsModal(envelope_check, 180.0, 800.0, None))
+        await pilot.pause()
+        modal = app.screen
+        modal.query_one("#rot_rate", Input).value = "12.5"
+        modal.query_one("#vib_rate", Input).value = "60"
+        modal.query_one("#linear", Checkbox).value = True
+        for field in modal.query(Input):  # a blinking cursor would be caught in either phase
+            field.cursor_blink = False
+        verdict = modal.query_one("#verdict", Static)
+        for _ in range(500):  # until the check of the last field's change has answered
+            await pilot.pause(0.02)
+            if "margin" in str(verdict.render()) and not modal.workers:
+                break
+        assert "inside the envelope" in str(verdict.render())
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=run)
+
+
+async def test_set_dialog_hands_over_rates_and_the_linear_path() -> None:
+    app = MillApp(frozen.SOCKET, live=False)
+    chosen: list[SetRequest | None] = []
+    async with app.run_test(size=SIZE) as pilot:
+        modal = SetpointsModal(envelope_check, 180.0, 800.0, None)
+        app.push_screen(modal, chosen.append)
+        await pilot.pause()
+        modal.query_one("#rot_rate", Input).value = "12.5"
+        modal.query_one("#linear", Checkbox).value = True
+        await pilot.press("enter")
+        await pilot.pause()
+    assert chosen == [SetRequest(180.0, 800.0, False, None, 12.5, None, True)]
