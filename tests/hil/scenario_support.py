@@ -197,6 +197,8 @@ VM_SCALED_KEYS: dict[str, type[BaseModel]] = {
     "setpoint_period_s": Timing,
     "min_stale_s": Interlock,
     "startup_grace_s": Interlock,
+    "command_confirm_s": Interlock,
+    "command_repeat_s": Interlock,
     "setpoint_refresh_s": Furnace,
 }
 """Periods and timeouts of the config multiplied by the VM's measured slowdown there (and their config section).

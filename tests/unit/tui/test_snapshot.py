@@ -169,6 +169,8 @@ def test_set_dialog_with_ramp_rates_and_the_linear_path(snap_compare: Any, utc: 
         modal.query_one("#rot_rate", Input).value = "12.5"
         modal.query_one("#vib_rate", Input).value = "60"
         modal.query_one("#linear", Checkbox).value = True
+        for field in modal.query(Input):  # a blinking cursor would be caught in either phase
+            field.cursor_blink = False
         verdict = modal.query_one("#verdict", Static)
         for _ in range(500):  # until the check of the last field's change has answered
             await pilot.pause(0.02)
