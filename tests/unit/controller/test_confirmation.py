@@ -5,8 +5,6 @@ Issue 15 items 2 and 5 (docs/safety.md#every-command-confirmed, #believe-only-wh
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
 from millctl.config import MillConfig
@@ -16,13 +14,6 @@ from millctl.safety import InterlockRefused
 from tests.unit.controller.bench import ScriptedNode
 
 S = ControllerState
-
-
-@pytest.fixture
-def bench(config: MillConfig) -> Iterator[ScriptedNode]:
-    b = ScriptedNode(config)
-    yield b
-    b.close()
 
 
 def sent_commands(bench: ScriptedNode, code: CommandCode) -> int:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 
 from millctl.config import MillConfig
@@ -13,13 +11,6 @@ from millctl.safety import InterlockRefused
 from tests.unit.controller.bench import ScriptedNode
 
 S = ControllerState
-
-
-@pytest.fixture
-def bench(config: MillConfig) -> Iterator[ScriptedNode]:
-    b = ScriptedNode(config)
-    yield b
-    b.close()
 
 
 def armed(bench: ScriptedNode) -> ScriptedNode:

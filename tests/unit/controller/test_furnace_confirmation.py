@@ -6,10 +6,6 @@ state and setpoint given, or (``follow``) those of the last Setpoints frame.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
-import pytest
-
 from millctl.config import MillConfig
 from millctl.controller import ControllerState
 from millctl.controller.furnace_expect import FurnaceExpectation
@@ -17,13 +13,6 @@ from millctl.protocol import EStop, FurnaceTelemetry, NodeState, Setpoints
 from tests.unit.controller.bench import ScriptedNode
 
 S = ControllerState
-
-
-@pytest.fixture
-def bench(config: MillConfig) -> Iterator[ScriptedNode]:
-    b = ScriptedNode(config)
-    yield b
-    b.close()
 
 
 def running(bench: ScriptedNode) -> None:

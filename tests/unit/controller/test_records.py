@@ -7,7 +7,7 @@ possible.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
 
@@ -19,13 +19,6 @@ from tests.unit.controller.bench import ScriptedNode
 
 S = ControllerState
 WHO = "api:alice"
-
-
-@pytest.fixture
-def bench(config: MillConfig) -> Iterator[ScriptedNode]:
-    b = ScriptedNode(config)
-    yield b
-    b.close()
 
 
 def armed(bench: ScriptedNode) -> None:
