@@ -17,6 +17,7 @@ from hypothesis import settings
 from hypothesis.database import DirectoryBasedExampleDatabase
 
 from millctl.config import MillConfig, load_config
+from tests.support import mutation_tests
 from tests.support.tiers import (
     pytest_addoption,
     pytest_collection_modifyitems,
@@ -45,6 +46,11 @@ settings.register_profile(
     print_blob=True,
 )
 settings.load_profile("ci")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under mutmut, a mutant is judged by its own module's tests (tests/support/mutation_tests.py)."""
+    config.pluginmanager.register(mutation_tests, "mutation_tests")
 
 
 @pytest.fixture(scope="session")
