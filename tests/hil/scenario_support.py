@@ -457,13 +457,16 @@ class Mill:
     def start_node(self) -> subprocess.Popen[bytes]:
         """Start ``python -m firmware_sim --fault-injection`` on the transport."""
         assert self.separate, "on virtual the node runs inside the service"
-        self.node = self.spawn(["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"])
+        self.node = self.spawn(
+            ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"], realtime=True
+        )
         return self.node
 
     def start_service(self) -> subprocess.Popen[bytes]:
         """Start ``millctl serve`` and wait for its socket."""
         self.service = self.spawn(
-            ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)]
+            ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)],
+            realtime=True,
         )
         service = self.service
         wait_for(
