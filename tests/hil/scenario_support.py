@@ -68,7 +68,7 @@ T = TypeVar("T")
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm), as in the controller."""
 SCHEDULING_ALLOWANCE_S = 0.05
-"""Added to every reaction bound on the host (s): late wake-ups of non-real-time processes on a loaded machine."""
+"""Added to every reaction bound on the host (s): late wake-ups of the Python processes in the chain."""
 POLL_S = 0.02
 """How often the wait helpers look again (s), times ``bound_scale()``: in the VM each status request costs the
 service (whose control loop shares its process) the measured factor times the host's CPU, so polling at the
@@ -96,9 +96,10 @@ class Bounds:
     a receiver sees a frame at its next tick, a state change reaches the bus
     with the next periodic frame. ``scheduling_s`` allows for the processes'
     sleeping loops waking late: the simulated node and the controller are
-    ordinary Python processes, not real-time tasks, and on a loaded 2-core
-    host a wake-up can come tens of ms late (``SCHEDULING_ALLOWANCE_S``,
-    env ``MILLCTL_HIL_SCHEDULING_S``).
+    Python processes (under ``.ci/test`` at a real-time policy, which keeps
+    other work from delaying them, not their own interpreter's pauses), and a
+    wake-up can come tens of ms late (``SCHEDULING_ALLOWANCE_S``, env
+    ``MILLCTL_HIL_SCHEDULING_S``). Load on the machine stretches none of them.
     """
 
     config: MillConfig

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -80,6 +81,10 @@ class Launcher:
         """``subprocess.Popen(argv, **kwargs)``, started from the launcher thread (so at its policy)."""
         return self._executor.submit(_start, argv, kwargs).result()
 
+    def start_thread(self, thread: threading.Thread) -> None:
+        """``thread.start()`` from the launcher thread: a new thread inherits its creator's policy."""
+        self._executor.submit(thread.start).result()
+
 
 _launcher: Launcher | None = None
 
@@ -114,6 +119,18 @@ def launcher_policy() -> Policy | None:
     return _launcher.policy if _launcher is not None else None
 
 
+def start_thread(thread: threading.Thread, *, realtime: bool) -> None:
+    """Start ``thread``; with ``realtime``, at the real-time policy the test process was started with (if any).
+
+    For a test's instrument that stands in for a device on the bus, whose timing the
+    bound under test assumes (the second sender answering each genuine frame at once).
+    """
+    if realtime and _launcher is not None:
+        _launcher.start_thread(thread)
+    else:
+        thread.start()
+
+
 def describe() -> str:
     """Which policy the service and node of the hil tests run at, for pytest's header."""
     if _launcher is None:
@@ -132,5 +149,6 @@ __all__ = [
     "describe",
     "launcher_policy",
     "popen",
+    "start_thread",
     "take_over",
 ]

@@ -23,10 +23,13 @@ def policy_of(realtime_child):
 seen = {}
 thread = threading.Thread(target=lambda: seen.update(thread=os.sched_getscheduler(0)))
 thread.start(); thread.join()
+instrument = threading.Thread(target=lambda: seen.update(instrument=os.sched_getscheduler(0)))
+realtime.start_thread(instrument, realtime=True); instrument.join()
 print(json.dumps({
     "kept": str(kept) if kept else None,
     "main": os.sched_getscheduler(0),
     "new_thread": seen["thread"],
+    "realtime_thread": seen["instrument"],
     "realtime_child": policy_of(True),
     "normal_child": policy_of(False),
     "header": realtime.describe(),
@@ -55,6 +58,7 @@ def test_started_at_sched_rr_only_the_realtime_children_keep_it() -> None:
     assert seen["main"] == os.SCHED_OTHER, "pytest's own thread must go back to the normal policy"
     assert seen["new_thread"] == os.SCHED_OTHER, "threads pytest starts afterwards must run at the normal policy"
     assert seen["realtime_child"] == [os.SCHED_RR, 7]
+    assert seen["realtime_thread"] == os.SCHED_RR
     assert seen["normal_child"] == [os.SCHED_OTHER, 0]
     assert "SCHED_RR priority 7 (real-time)" in str(seen["header"])
 
@@ -64,5 +68,6 @@ def test_started_at_the_normal_policy_everything_stays_normal() -> None:
     assert seen["kept"] is None
     assert seen["main"] == os.SCHED_OTHER
     assert seen["realtime_child"] == [os.SCHED_OTHER, 0]
+    assert seen["realtime_thread"] == os.SCHED_OTHER
     assert seen["normal_child"] == [os.SCHED_OTHER, 0]
     assert "normal scheduling policy" in str(seen["header"])
