@@ -144,6 +144,7 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
     assert steady["measured_vibration_rpm"] == pytest.approx(LOW_RPM[1], abs=3.0)
     assert steady["detached"] is not None  # the node's physics telemetry arrives
 
+    mill.client.take_control()  # renew the lease (30 s): in the VM the ramp and the steady window outlast it
     t_stop = time.time()
     mill.client.stop()
     stopped = wait_for(
