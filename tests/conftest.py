@@ -17,6 +17,7 @@ from hypothesis import settings
 from hypothesis.database import DirectoryBasedExampleDatabase
 
 from millctl.config import MillConfig, load_config
+from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
     pytest_collection_modifyitems,
@@ -35,6 +36,17 @@ __all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG_FILE = REPO / "config" / "mill.toml"
+
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Started under a real-time policy (.ci/test's hil tiers): keep it for the service and node only.
+
+    pytest itself goes back to the normal policy here, before it starts a thread of its own
+    (tests/support/realtime.py).
+    """
+    take_over()
+
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 settings.register_profile(

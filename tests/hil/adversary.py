@@ -26,6 +26,7 @@ from can.interfaces.udp_multicast.utils import pack_message
 
 from millctl.config.models import Bus
 from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
+from tests.support.realtime import start_thread
 
 CAN_BITRATE = 500_000
 """The mill bus's bit rate (config/millbus.dbc)."""
@@ -58,9 +59,10 @@ class Background:
     _halt: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
 
-    def start(self, body: Callable[[Background], None]) -> Background:
+    def start(self, body: Callable[[Background], None], *, realtime: bool = False) -> Background:
+        """Run ``body`` on a thread; ``realtime``: at the service's and node's policy (tests.support.realtime)."""
         self._thread = threading.Thread(target=body, args=(self,), name=f"adversary-{self.name}", daemon=True)
-        self._thread.start()
+        start_thread(self._thread, realtime=realtime)
         return self
 
     @property
@@ -147,8 +149,8 @@ class Adversary:
         return t
 
     # -- background senders ------------------------------------------------------------------------------------
-    def _background(self, name: str, body: Callable[[Background], None]) -> Background:
-        sender = Background(name).start(body)
+    def _background(self, name: str, body: Callable[[Background], None], *, realtime: bool = False) -> Background:
+        sender = Background(name).start(body, realtime=realtime)
         self._running.append(sender)
         return sender
 
@@ -213,7 +215,12 @@ class Adversary:
         return self._background("walk", body)
 
     def answer(self, kinds: tuple[type[MillMessage], ...], forge: Callable[[Decoded], MillMessage]) -> Background:
-        """A second sender: every genuine frame of ``kinds`` heard is answered at once with ``forge``, counter + 1."""
+        """A second sender: every genuine frame of ``kinds`` heard is answered at once with ``forge``, counter + 1.
+
+        It stands in for a device on the bus, and the trip's bound assumes it answers within a frame
+        period: it runs at the service's and node's real-time policy where they have one, so that a
+        CPU hog delays neither side. (It blocks in ``recv`` between frames: it never spins.)
+        """
 
         def body(sender: Background) -> None:
             for decoded in self._heard(sender, kinds):
@@ -222,7 +229,7 @@ class Adversary:
                     sender.first_sent_t = sender.first_sent_t or t
                     sender.sent += 1
 
-        return self._background("second-sender", body)
+        return self._background("second-sender", body, realtime=True)
 
     def record(self, kind: type[MillMessage], count: int, timeout_s: float) -> list[can.Message]:
         """The next ``count`` frames of ``kind`` heard on the bus, as they were (for a replay)."""

@@ -34,12 +34,19 @@ import can
 import pytest
 
 from tests.support.pace import cpu_share, stretched, time_scale
+from tests.support.realtime import describe as describe_realtime
+from tests.support.realtime import popen as realtime_popen
 
 REPO = Path(__file__).resolve().parents[2]
 IN_VM = os.environ.get("MILLCTL_IN_VM") == "1"
 VCAN = "vcan0"
 # An administratively scoped IPv4 group; the netns routes 224.0.0.0/4 to lo.
 MULTICAST_GROUP = "239.74.163.2"
+
+
+def pytest_report_header() -> str:
+    """Which scheduling policy the service and node run at (real-time under .ci/test, where permitted)."""
+    return describe_realtime()
 
 
 # --- where each transport can run -------------------------------------------
@@ -197,17 +204,22 @@ class Spawner:
         self._procs: list[subprocess.Popen[bytes]] = []
         self._logs: dict[int, Path] = {}
 
-    def __call__(self, argv: list[str], *, env: dict[str, str] | None = None) -> subprocess.Popen[bytes]:
+    def __call__(
+        self, argv: list[str], *, env: dict[str, str] | None = None, realtime: bool = False
+    ) -> subprocess.Popen[bytes]:
         """Start ``argv`` (``python`` as the first item means this interpreter) in the repo root.
 
         stdout and stderr go to one log file; ``env`` is added to this process's environment.
+        ``realtime``: at the real-time policy pytest was started with, if any (the service and
+        the node, whose timing the tests check: ``tests.support.realtime``).
         """
         if argv and argv[0] == "python":
             argv = [sys.executable, *argv[1:]]
         log = self._workdir / f"proc{len(self._procs)}.log"
         with log.open("wb") as out:
-            proc = subprocess.Popen(
+            proc = realtime_popen(
                 argv,
+                realtime=realtime,
                 cwd=REPO,
                 env={**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})},  # a failure shows all they printed
                 stdin=subprocess.DEVNULL,

@@ -68,7 +68,7 @@ T = TypeVar("T")
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm), as in the controller."""
 SCHEDULING_ALLOWANCE_S = 0.05
-"""Added to every reaction bound on the host (s): late wake-ups of non-real-time processes on a loaded machine."""
+"""Added to every reaction bound on the host (s): late wake-ups of the Python processes in the chain."""
 POLL_S = 0.02
 """How often the wait helpers look again (s), times ``bound_scale()``: in the VM each status request costs the
 service (whose control loop shares its process) the measured factor times the host's CPU, so polling at the
@@ -96,9 +96,10 @@ class Bounds:
     a receiver sees a frame at its next tick, a state change reaches the bus
     with the next periodic frame. ``scheduling_s`` allows for the processes'
     sleeping loops waking late: the simulated node and the controller are
-    ordinary Python processes, not real-time tasks, and on a loaded 2-core
-    host a wake-up can come tens of ms late (``SCHEDULING_ALLOWANCE_S``,
-    env ``MILLCTL_HIL_SCHEDULING_S``).
+    Python processes (under ``.ci/test`` at a real-time policy, which keeps
+    other work from delaying them, not their own interpreter's pauses), and a
+    wake-up can come tens of ms late (``SCHEDULING_ALLOWANCE_S``, env
+    ``MILLCTL_HIL_SCHEDULING_S``). Load on the machine stretches none of them.
     """
 
     config: MillConfig
@@ -457,13 +458,16 @@ class Mill:
     def start_node(self) -> subprocess.Popen[bytes]:
         """Start ``python -m firmware_sim --fault-injection`` on the transport."""
         assert self.separate, "on virtual the node runs inside the service"
-        self.node = self.spawn(["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"])
+        self.node = self.spawn(
+            ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"], realtime=True
+        )
         return self.node
 
     def start_service(self) -> subprocess.Popen[bytes]:
         """Start ``millctl serve`` and wait for its socket."""
         self.service = self.spawn(
-            ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)]
+            ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)],
+            realtime=True,
         )
         service = self.service
         wait_for(

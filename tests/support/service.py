@@ -25,6 +25,7 @@ import pytest
 from millctl.client import Client
 from millctl.config.loader import packaged_file
 from tests.support.pace import Deadline, stretched
+from tests.support.realtime import popen as realtime_popen
 
 REPO = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 30.0
@@ -103,8 +104,9 @@ def start_service(
     log = directory / "serve.log"
     argv = module_args if module_args is not None else ["millctl", "--config", str(config), "serve"]
     with log.open("wb") as out:
-        proc = subprocess.Popen(
+        proc = realtime_popen(  # at the real-time policy .ci/test gives the hil tiers, where it could
             [sys.executable, "-m", *argv],
+            realtime=True,
             cwd=REPO,
             stdin=subprocess.DEVNULL,
             stdout=out,
