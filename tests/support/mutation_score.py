@@ -20,7 +20,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 KILLED = {1: "killed", 3: "killed", 36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255: "timeout"}
-"""mutmut's exit codes that mean a test caught the mutant (mutmut.stats.status_by_exit_code)."""
+"""mutmut's exit codes that mean a test caught the mutant (mutmut.stats.status_by_exit_code); a timeout
+counts as killed, as mutmut counts it, and is shown apart."""
 SURVIVED = 0
 NO_TESTS = {5, 33}
 NOT_RUN = None
@@ -43,7 +44,7 @@ def verdicts(root: Path, globs: Sequence[str]) -> dict[str, dict[str, int | None
 def verdict(code: int | None) -> str:
     """mutmut's exit code of one mutant as a verdict: killed, survived, no tests, not run or other."""
     if code in KILLED:
-        return "killed"
+        return KILLED[code]
     if code == SURVIVED:
         return "survived"
     if code in NO_TESTS:
@@ -54,10 +55,12 @@ def verdict(code: int | None) -> str:
 def score_line(label: str, codes: Iterable[int | None]) -> str:
     """One score line: killed/tested (%), survived, no tests, not run, other (suspicious, skipped, segfault)."""
     counts = Counter(verdict(code) for code in codes)
-    tested = counts["killed"] + counts["survived"] + counts["other"]
-    percent = 100.0 * counts["killed"] / tested if tested else 0.0
+    killed = counts["killed"] + counts["timeout"]
+    tested = killed + counts["survived"] + counts["other"]
+    percent = 100.0 * killed / tested if tested else 0.0
+    timeouts = f" (timeout {counts['timeout']})" if counts["timeout"] else ""
     return (
-        f"{label}: {counts['killed']}/{tested} killed ({percent:.1f} %); survived {counts['survived']}, "
+        f"{label}: {killed}/{tested} killed{timeouts} ({percent:.1f} %); survived {counts['survived']}, "
         f"no test {counts['no tests']}, not run {counts['not run']}, other {counts['other']}, "
         f"total {sum(counts.values())}"
     )
