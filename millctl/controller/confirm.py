@@ -51,6 +51,16 @@ class Confirmations:
             pending.last_sent_s = now_s
             pending.sends += 1
 
+    def reopen(self, code: CommandCode, source: str, reason: str, first_sent_s: float) -> None:
+        """Pending again (if it is not): a report from before the node took it had confirmed it.
+
+        It keeps the deadline of its first send at ``first_sent_s``: a reopened
+        command is never given longer than one confirmation bound.
+        """
+        if code not in self.pending:
+            self.pending[code] = Pending(code, source, reason, first_sent_s, first_sent_s,
+                                         first_sent_s + self.confirm_s)
+
     def in_flight(self, now_s: float) -> frozenset[CommandCode]:
         """Commands pending, or confirmed within the last confirmation bound (the node may still be acting)."""
         recent = {code for code, t in self.confirmed_s.items() if now_s - t <= self.confirm_s}

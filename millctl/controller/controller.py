@@ -23,6 +23,7 @@ from millctl.controller.events import Event, EventKind, EventListener
 from millctl.controller.expect import SpeedExpectation
 from millctl.controller.furnace_expect import FurnaceExpectation
 from millctl.controller.monitor import MeasuredSpeedMonitor
+from millctl.controller.overtake import RunOrders
 from millctl.controller.states import ControllerState, StateMachine, Transition
 from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
@@ -109,6 +110,7 @@ class Controller:
             interlock.debounce_samples,
         )
         self.furnace_expectation = FurnaceExpectation(interlock.command_confirm_s, interlock.debounce_samples)
+        self.run_orders = RunOrders(interlock.command_confirm_s)
         self._node_state: NodeState | None = None
         """The node's state in the last NodeStatus (None before the first, or after losing the node)."""
         self._estop_pending = False
@@ -308,6 +310,7 @@ class Controller:
         self.trajectory = None
         self.furnace_target_c = None
         self._command(CommandCode.STOP, source, reason)
+        self.run_orders.stop_sent(self.clock.now())
         self._expect_stop()
         if self.machine.can_go(S.STOPPING):
             self.machine.go(S.STOPPING, f"{source}: {reason}")
@@ -381,6 +384,7 @@ class Controller:
         self.trajectory = None
         self.furnace_target_c = None
         self._command(CommandCode.STOP, "interlock", f"trip: {cause}")
+        self.run_orders.stop_sent(self.clock.now())
         self._expect_stop()
         self.commanded = STANDSTILL
         self.machine.go(S.TRIPPED, cause)
@@ -451,14 +455,27 @@ class Controller:
         return self.state in (S.ARMED, S.RUNNING) and (self.commanded != STANDSTILL or self.trajectory is not None)
 
     def _judge_node_change(self, node: NodeState) -> None:
-        """Any node state change the controller did not command trips (E-stop where a stop was commanded)."""
+        """Any node state change the controller did not command trips (E-stop where a stop was commanded).
+
+        The one change judged against what the controller sent before rather
+        than what it commands now: a RUNNING that answers its own order to run,
+        which a STOP overtook (docs/safety.md#a-stop-overtaking-a-setpoint).
+        """
         before, self._node_state = self._node_state, node
         now = self.clock.now()
+        overtaken = node is NodeState.RUNNING and self.run_orders.explains_running(now)
+        self.run_orders.reported(node)
         if before is None:  # first status (or first after losing the node): only a running node is suspect
             if node is NodeState.RUNNING and not self.moving_commanded and self.state is not S.DISCONNECTED:
+                if overtaken:
+                    self._stop_overtook_setpoint(now)
+                    return
                 self._uncommanded(f"node reports RUNNING, which the controller (state {self.state}) did not command")
             return
         if node_change_commanded(before, node, self.confirmations.in_flight(now), self.moving_commanded):
+            return
+        if overtaken:  # before is ARMED: any other report ends the order
+            self._stop_overtook_setpoint(now)
             return
         restarted = ": the node restarted, or another sender commands it" if node is NodeState.DISABLED else (
             ": another sender commands the node"
@@ -467,6 +484,29 @@ class Controller:
             f"node went {before.name} → {node.name}, which the controller (state {self.state}) did not command"
             + restarted
         )
+
+    def _stop_overtook_setpoint(self, now: float) -> None:
+        """The node ran on the controller's own setpoint, sent just before a STOP it has not taken yet: the stop holds.
+
+        The STOP stays pending with its first deadline (pending again if a
+        status from before the node took it had confirmed it), so RUNNING must
+        end within the STOP's bound or the controller sends an E-stop; a
+        controller that took that earlier status for the stop's end is
+        STOPPING again, under the stop's ceiling.
+        """
+        stop_s = self.run_orders.stop_s
+        self.confirmations.reopen(CommandCode.STOP, "controller", "the node ran on a setpoint sent before the STOP",
+                                  stop_s)
+        self._emit(
+            EventKind.COMMAND,
+            "controller",
+            f"node RUNNING {now - stop_s:.2f} s after the STOP, on the setpoint sent before it (the node takes "
+            "frames in order and has not taken the STOP yet): the stop holds, STOP pending "
+            "(docs/safety.md#a-stop-overtaking-a-setpoint)",
+        )
+        if self.state is S.ARMED:
+            self._expect_stop()
+            self.machine.go(S.STOPPING, "node RUNNING on a setpoint sent before the STOP: the stop is not complete")
 
     def _on_node_status(self, status: NodeStatus) -> None:
         now = self.clock.now()
@@ -620,6 +660,7 @@ class Controller:
             if self.state in (S.ARMED, S.RUNNING):
                 furnace_c = self._furnace_command()
                 snapped = self.planner.snap(self.commanded)
+                self.run_orders.setpoints_sent(now, snapped != STANDSTILL, self._node_state)
                 self._send(
                     Setpoints(
                         rotary_rpm=snapped.omega_r_rpm,

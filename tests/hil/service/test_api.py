@@ -272,6 +272,38 @@ def test_a_recipe_runs_pauses_and_aborts_and_a_bad_one_is_refused(service: Servi
         wait_for(lambda: client.status().state == "DISABLED", what="DISABLED")
 
 
+ABORT_DELAYS_S = (0.0, 0.0, 0.01, 0.02, 0.0, 0.03, 0.005, 0.05, 0.0, 0.015)
+"""When the abort follows the resume, one run each: the race window is the ~50 ms between the controller's
+first nonzero setpoint to an ARMED node and the node's RUNNING coming back."""
+
+
+def test_pause_resume_and_abort_back_to_back_stop_cleanly(service: Service) -> None:
+    """The CI flake (issue 15): pause → resume → abort in quick succession tripped the controller with "node went
+    ARMED → RUNNING, which the controller (state STOPPING) did not command", an E-stop, and left the service
+    TRIPPED for the next test. The resume re-issues the ramp: its first nonzero setpoint goes to an ARMED node, and
+    the abort's STOP follows it before the node's answer is back (docs/safety.md#a-stop-overtaking-a-setpoint)."""
+    with service.client("back-to-back") as client, client.control():
+        after = client.events().last_seq
+        for run, delay_s in enumerate(ABORT_DELAYS_S, 1):
+            client.recipe_run(DEMO)
+            wait_for(lambda: (p := client.recipe().progress) is not None and p.state == "RUNNING",
+                     what=f"run {run} to start")
+            client.recipe_pause(now=True)
+            client.recipe_resume()
+            time.sleep(delay_s)
+            client.recipe_abort()
+            wait_for(lambda: not client.recipe().active, 30.0, f"run {run} to stop")
+            status = client.status()
+            trips = [e.message for e in client.events(after=after).events if e.kind is EventKind.TRIP]
+            assert status.state is ControllerState.ARMED and not trips, (
+                f"run {run} (abort {delay_s * 1e3:.0f} ms after the resume): {status.state}, trips {trips}"
+            )
+            progress = client.recipe().progress
+            assert progress is not None and progress.state is RunState.ABORTED
+        client.disarm()
+        wait_for(lambda: client.status().state == "DISABLED", what="DISABLED")
+
+
 async def test_the_async_client_reads_and_commands(service: Service) -> None:
     async with AsyncClient(service.socket, name="async") as client:
         assert (await client.status()).state == "DISABLED"

@@ -198,6 +198,26 @@ def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench: Scr
     assert any(e.kind is EventKind.REFUSAL and "reset did not complete" in e.message for e in bench.events)
 
 
+def test_a_reset_with_nothing_to_send_that_the_node_never_completes_is_given_up_after_its_timeout(
+    bench: ScriptedNode,
+) -> None:
+    """The reset's own bound: a node already DISABLED needs no command, so no confirmation bound gives the
+    reset up; when its completing status never comes (the node falls silent), RESET_TIMEOUT_S does."""
+    from millctl.controller.controller import RESET_TIMEOUT_S
+
+    armed(bench)
+    bench.run(0.2, state=NodeState.DISABLED)  # the node restarted: a trip
+    assert bench.controller.state is S.TRIPPED
+    commands_before = len(bench.messages(Command))
+    bench.controller.reset()
+    bench.run(RESET_TIMEOUT_S + 0.1)  # not a word from the node
+    assert len(bench.messages(Command)) == commands_before  # nothing to send, so nothing to confirm
+    given_up = [e for e in bench.events if e.kind is EventKind.REFUSAL and "reset did not complete within" in e.message]
+    assert len(given_up) == 1, [e.message for e in bench.events]
+    bench.run(0.5, state=NodeState.DISABLED)  # the node is back, DISABLED and clear: the reset was given up
+    assert bench.controller.state is S.TRIPPED
+
+
 def _without_furnace(bench: ScriptedNode, seconds: float) -> None:
     """The node's NodeStatus and DriveTelemetry every 50 ms, its FurnaceTelemetry not (yet)."""
     from millctl.protocol import DriveTelemetry, NodeStatus
