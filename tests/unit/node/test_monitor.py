@@ -184,3 +184,34 @@ def test_rotary_overspeed_is_checked_too(monitor: SpeedMonitor, config: MillConf
     assert all(FaultFlag.OVERSPEED not in flags for flags in feed(monitor, on))
     past = [(ceiling + 0.5, 0.0), (ceiling + 1.0, 0.0), (ceiling + 0.5, 0.0), (ceiling, 0.0)]
     assert [FaultFlag.OVERSPEED in flags for flags in feed(monitor, past)] == [False, False, True, False]
+
+
+def test_faults_of_one_tick_are_reported_together(config: MillConfig) -> None:
+    """A tick can see several faults at once: each is reported, none overwrites another."""
+    tolerance = config.interlock.measurement_tolerance_rpm
+    monitor = SpeedMonitor(config, Envelope.from_config(config))
+    # the rotary sensor jumps between −20 and −40 rpm: implausible steps, a commanded drive at standstill, outside
+    jumping = feed(monitor, [(-20.0, 0.0), (-40.0, 0.5)] * 2, reference=(100.0, 0.0))
+    assert jumping[-1] == FaultFlag.SENSOR | FaultFlag.STALL | FaultFlag.ENVELOPE
+    ceiling = config.drives.vibration.max_speed_rpm + tolerance
+    over = SpeedMonitor(config, Envelope.from_config(config))
+    flags = feed(over, [(0.0, ceiling + 0.5), (0.0, ceiling + 1.0), (0.0, ceiling + 0.5)])
+    assert flags[-1] == FaultFlag.ENVELOPE | FaultFlag.OVERSPEED
+
+
+def test_overspeed_from_the_first_tick_is_debounced_like_any_other(monitor: SpeedMonitor, config: MillConfig) -> None:
+    ceiling = config.drives.rotary.max_speed_rpm + config.interlock.measurement_tolerance_rpm
+    flags = feed(monitor, [(ceiling + 0.5, 0.0), (ceiling + 1.0, 0.0), (ceiling + 0.5, 0.0)])
+    assert [FaultFlag.OVERSPEED in f for f in flags] == [False, False, True]
+
+
+def test_a_reading_on_the_overspeed_ceiling_for_many_ticks_is_not_overspeed(
+    monitor: SpeedMonitor, config: MillConfig
+) -> None:
+    ceiling = config.drives.vibration.max_speed_rpm + config.interlock.measurement_tolerance_rpm
+    assert all(FaultFlag.OVERSPEED not in f for f in feed(monitor, [(0.0, ceiling)] * 4))
+
+
+def test_an_unreadable_sensor_keeps_the_other_drives_fault_of_that_tick(monitor: SpeedMonitor) -> None:
+    flags = feed(monitor, [(0.0, 0.0), (0.0, 0.5), (math.nan, 0.0)], reference=(0.0, 100.0))  # vibration stalls
+    assert flags[-1] == FaultFlag.SENSOR | FaultFlag.STALL
