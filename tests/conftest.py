@@ -17,6 +17,7 @@ from hypothesis import settings
 from hypothesis.database import DirectoryBasedExampleDatabase
 
 from millctl.config import MillConfig, load_config
+from tests.support import mutation_tests
 from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
@@ -38,14 +39,15 @@ REPO = Path(__file__).resolve().parents[1]
 CONFIG_FILE = REPO / "config" / "mill.toml"
 
 
-
 def pytest_configure(config: pytest.Config) -> None:
     """Started under a real-time policy (.ci/test's hil tiers): keep it for the service and node only.
 
     pytest itself goes back to the normal policy here, before it starts a thread of its own
-    (tests/support/realtime.py).
+    (tests/support/realtime.py). Under mutmut, a mutant is judged by its own module's tests
+    (tests/support/mutation_tests.py).
     """
     take_over()
+    config.pluginmanager.register(mutation_tests, "mutation_tests")
 
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)

@@ -33,7 +33,7 @@ from typing import Any
 import can
 import pytest
 
-from tests.support.pace import cpu_share, stretched, time_scale
+from tests.support.pace import cpu_share, scale_for_a_test, stretched, time_scale
 from tests.support.realtime import describe as describe_realtime
 from tests.support.realtime import popen as realtime_popen
 
@@ -175,6 +175,22 @@ def _make_transport(name: str) -> Transport:
 
 
 TRANSPORTS = ("virtual", "udp_multicast", "socketcan")
+RUN_TIME_SCALE = time_scale()
+"""The run's time scale (``MILLCTL_TIME_SCALE`` as pytest started: in the VM, measured as it booted)."""
+
+
+@pytest.fixture(autouse=True)
+def per_test_time_scale(monkeypatch: pytest.MonkeyPatch) -> float:
+    """This test's time scale: in the VM measured again as the test starts (``pace.scale_for_a_test``).
+
+    Autouse, so it runs before the transport, the spawner and the mill read ``time_scale()``: the
+    test's waits, the VM's config periods and the bounds all follow the VM's speed at this moment,
+    not at boot. On the host (and with a forced scale) it is the run's figure, unchanged.
+    """
+    scale = scale_for_a_test(RUN_TIME_SCALE)
+    if scale != RUN_TIME_SCALE:
+        monkeypatch.setenv("MILLCTL_TIME_SCALE", f"{scale:.2f}")
+    return time_scale()
 
 
 @pytest.fixture(params=TRANSPORTS)

@@ -137,13 +137,14 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
     mill.client.set_speeds(*LOW_RPM)
     mill.wait_speeds(*LOW_RPM, timeout_s=30.0)
 
-    time.sleep(1.0)  # steady milling
+    time.sleep(mill.timeout(1.0))  # steady milling (a window of the processes' time: scaled like every wait)
     steady = mill.status()
     assert steady["state"] == "RUNNING" and steady["node_state"] == "RUNNING", steady["trip_cause"]
     assert steady["measured_rotary_rpm"] == pytest.approx(LOW_RPM[0], abs=3.0)
     assert steady["measured_vibration_rpm"] == pytest.approx(LOW_RPM[1], abs=3.0)
     assert steady["detached"] is not None  # the node's physics telemetry arrives
 
+    mill.client.take_control()  # renew the lease (30 s): in the VM the ramp and the steady window outlast it
     t_stop = time.time()
     mill.client.stop()
     stopped = wait_for(
@@ -173,8 +174,15 @@ def test_over_limit_setpoint_refused_by_the_controller(mill: Mill) -> None:
 
     with pytest.raises(InterlockRefusal, match=r"250\.0 rpm exceeds the limit 190\.0 rpm at ω_v = 800\.0 rpm"):
         mill.client.set_speeds(250.0, 800.0)
+    t_refused = time.time()
 
-    time.sleep(0.5)
+    if mill.probe is not None:
+        # A Setpoints frame the controller sent after the refusal: had anything of the request reached the
+        # setpoint, it is in that frame. Waited for, not slept for: in the VM the setpoint period is scaled
+        # by the measured slowdown (VM_SCALED_KEYS), so a fixed window may hold no frame at all.
+        mill.probe.wait_first(is_kind(Setpoints), t_refused, mill.timeout(5.0), "a Setpoints frame after the refusal")
+    else:
+        time.sleep(mill.timeout(0.5))
     after = mill.status()
     assert after["state"] == "ARMED" and after["node_state"] == "ARMED"
     assert after["refused_setpoints"] == 0  # refused, not clamped: nothing reached the node
@@ -265,7 +273,7 @@ def test_rogue_senders_setpoint_refused_by_the_node(
     report_timing(capsys, f"rogue_{case}_refused", transport.name, reply.t - t_sent, bound_s)
     assert reply.t - t_sent <= bound_s
 
-    time.sleep(0.5)
+    time.sleep(mill.timeout(0.5))  # what the rogue frame would have moved shows in this window (scaled)
     assert mill.outside_envelope(drive_frames(probe, t_sent)) == []
     status = mill.status()
     assert status["state"] == "RUNNING" and status["node_state"] == "RUNNING"
@@ -359,13 +367,14 @@ def test_node_killed_and_restarted_mid_run_controller_trips_and_nothing_runs_wit
     # the new node boots DISABLED, or FAULT at once when the controller's repeated E-stop reaches it first
     first = probe.wait_first(is_status(), t_restart, mill.timeout(30.0), "the restarted node")
     assert first.of(NodeStatus).state in {NodeState.DISABLED, NodeState.FAULT}
-    time.sleep(1.0)
+    time.sleep(mill.timeout(1.0))
     assert mill.status()["state"] == "TRIPPED"  # latched across the restart
     mill.client.take_control()  # renew the lease: a restart in the VM outlasts it
     mill.client.reset()
     mill.wait_state("DISABLED")
     t_reset = probe.now()
-    time.sleep(1.0)
+    probe.wait_first(is_status(NodeState.DISABLED), t_reset, mill.timeout(5.0), "the node DISABLED after the reset")
+    time.sleep(mill.timeout(1.0))
     statuses = probe.frames(t_restart, lambda s: isinstance(s.message, NodeStatus))
     # never ARMED, never RUNNING; FAULT when the controller's E-stop (its lost STOP escalated, repeated until a
     # node reports it: docs/safety.md#every-command-confirmed) reached the new node before the reset cleared it
@@ -435,7 +444,7 @@ def test_babbling_node_controller_stays_responsive_or_trips_with_a_named_cause(
         during = mill.status()
         time.sleep(0.1 * bound_scale())
     t_quiet = probe.inject(SimFaultCode.NODE_BABBLE, active=False)
-    time.sleep(0.5)
+    time.sleep(mill.timeout(0.5))
     final = mill.status()
 
     assert probe.frames(t_babble, lambda s: s.frame.arbitration_id == BABBLE_ID), "the node babbled"

@@ -5,7 +5,9 @@
 module and one for the whole scope: killed (a test failed, or timed out) of
 the mutants tested, survivors, mutants no test reaches and mutants not yet
 run; then every survivor by name (``mutmut show NAME`` shows its diff). With
-globs, only the mutants whose names match count. Reads only.
+globs, only the mutants whose names match count. ``--not-run [GLOB ...]``
+prints only the names of the matching mutants with no verdict yet, one a line,
+for ``bash .ci/mutation`` to test them in the order given. Reads only.
 """
 
 from __future__ import annotations
@@ -62,6 +64,9 @@ def score_line(label: str, codes: Iterable[int | None]) -> str:
 
 
 def main(argv: Sequence[str]) -> int:
+    not_run_only = bool(argv) and argv[0] == "--not-run"
+    if not_run_only:
+        argv = argv[1:]
     root = Path("mutants")
     if not root.is_dir():
         print(
@@ -72,6 +77,12 @@ def main(argv: Sequence[str]) -> int:
     if not by_module:
         print(f"error: no mutant in mutants/ matches {' '.join(argv)!r}", file=sys.stderr)
         return 2
+    if not_run_only:
+        for codes in by_module.values():
+            for name, code in codes.items():
+                if code is NOT_RUN:
+                    print(name)
+        return 0
     for module, codes in by_module.items():
         print(score_line(f"  {module}", codes.values()))
     every = [code for codes in by_module.values() for code in codes.values()]

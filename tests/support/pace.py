@@ -173,6 +173,27 @@ def slowdown_now() -> float:
     return max(slowdown_against(float(reference)), time_scale())
 
 
+MEASURED_ENV = "MILLCTL_TIME_SCALE_MEASURED"
+"""``1`` when ``$MILLCTL_TIME_SCALE`` is the VM's own measurement (``tests/vm/guest``), not a caller's forced figure."""
+
+
+def scale_for_a_test(run_scale: float) -> float:
+    """The time scale for a hil test starting now: the slowdown measured now, at least the run's ``run_scale``.
+
+    The VM measures its scale once as it boots, but a run lasts half an hour and the host's load
+    changes under it (another job starts, a CPU hog runs a spell): a scale that was right at boot
+    then leaves the tests of a busier moment too little time. So each test measures it again as it
+    starts (about 1 s in the VM) and its waits, its config and its bounds follow that figure. Never
+    below the run's own figure, so that a calm moment does not tighten what the run was sized for.
+    Where the scale is not a measurement (the host; ``MILLCTL_TIME_SCALE`` forced by the caller,
+    no ``$MILLCTL_TIME_SCALE_MEASURED``; no host reference) it is ``run_scale`` as it is.
+    """
+    reference = os.environ.get(REFERENCE_ENV)
+    if os.environ.get(MEASURED_ENV) != "1" or not reference:
+        return run_scale
+    return max(slowdown_against(float(reference)), run_scale)
+
+
 def main(argv: list[str]) -> int:
     """``python -m tests.support.pace --reference`` (host) / ``--scale REF_S`` (VM): print the figure."""
     if argv == ["--reference"]:
@@ -191,11 +212,13 @@ if __name__ == "__main__":
 
 __all__ = [
     "MAX_STRETCH",
+    "MEASURED_ENV",
     "REFERENCE_ENV",
     "Deadline",
     "calibration_s",
     "cpu_share",
     "runnable_per_cpu",
+    "scale_for_a_test",
     "slowdown_against",
     "slowdown_now",
     "stretched",

@@ -180,3 +180,129 @@ def test_sequence_score_decays_one_per_decay_frames_fresh_frames_and_clears_on_r
     assert (receiver.score, receiver.sequence_score, receiver.last_counter) == (0, 0, 4)
     with pytest.raises(ValueError, match="sequence_decay_frames 0"):
         E2EReceiver(error_limit=5, sequence_decay_frames=0)
+
+
+def test_every_refused_parameter_is_named_with_its_value_and_range() -> None:
+    with pytest.raises(ValueError, match=r"alive counter start 16 is outside 0 … 15"):
+        AliveCounter(start=16)
+    with pytest.raises(ValueError, match=r"alive counter start -1 is outside 0 … 15"):
+        AliveCounter(start=-1)
+    assert AliveCounter(start=15).value == 15 and AliveCounter(start=0).value == 0
+    with pytest.raises(ValueError, match=r"E2E error limit 0 must be ≥ 1"):
+        E2EReceiver(error_limit=0)
+    with pytest.raises(ValueError, match=r"E2E max_delta 15 must be in 1 … 14"):
+        E2EReceiver(error_limit=5, max_delta=15)
+    with pytest.raises(ValueError, match=r"E2E max_delta 0 must be in 1 … 14"):
+        E2EReceiver(error_limit=5, max_delta=0)
+    assert E2EReceiver(error_limit=1, max_delta=14, sequence_decay_frames=1).max_delta == 14
+    with pytest.raises(ValueError, match=r"E2E data ID -1 is outside 0 … 65535"):
+        e2e_crc(-1, b"\x00")
+    assert e2e_crc(0xFFFF, b"\x00") == Crc8SaeJ1850.calc(b"\xff\xff\x00")
+
+
+def test_the_crc_parameters_can_be_given() -> None:
+    """Start value and final XOR are parameters (0x00/0x00 is the plain CRC-8 with poly 0x1D)."""
+    data = b"123456789"
+    assert crc8_sae_j1850(data, start=0xFF, xor_out=0x00) == 0x4B ^ 0xFF
+    assert crc8_sae_j1850(data, start=0x00, xor_out=0x00) == 0x37  # CRC-8/GSM-A's check value (poly 0x1D, init 0)
+    assert crc8_sae_j1850(b"") == 0x00  # 0xFF, then the final XOR
+
+
+def test_the_error_score_names_its_receiver_value_and_limit() -> None:
+    receiver = E2EReceiver(error_limit=2, name="Heartbeat")
+    receiver.classify(None, crc_ok=False)
+    assert not receiver.faulted and receiver.fault_reason() is None
+    receiver.classify(None, crc_ok=False)
+    assert receiver.faulted
+    assert receiver.fault_reason() == "Heartbeat E2E error score 2 ≥ limit 2"
+    unnamed = E2EReceiver(error_limit=1)
+    unnamed.classify(3, crc_ok=True)
+    unnamed.classify(3, crc_ok=True)
+    assert unnamed.fault_reason() == (
+        "E2E link E2E sequence score 1 ≥ limit 1: repeated or out-of-sequence counters with good CRCs "
+        "(a second sender or a replay on the identifier)"
+    )
+
+
+def test_a_counter_outside_four_bits_is_a_wrong_crc_and_counted() -> None:
+    receiver = E2EReceiver(error_limit=5)
+    assert receiver.classify(16, crc_ok=True) is E2EStatus.WRONG_CRC
+    assert receiver.classify(-1, crc_ok=True) is E2EStatus.WRONG_CRC
+    assert receiver.classify(None, crc_ok=True) is E2EStatus.WRONG_CRC
+    assert receiver.last_counter is None and receiver.score == 3 and receiver.sequence_score == 0
+    assert receiver.classify(15, crc_ok=True) is E2EStatus.OK
+    assert receiver.counts == {
+        E2EStatus.OK: 1,
+        E2EStatus.OK_SOME_LOST: 0,
+        E2EStatus.REPEATED: 0,
+        E2EStatus.WRONG_SEQUENCE: 0,
+        E2EStatus.WRONG_CRC: 3,
+    }
+
+
+def test_a_repeated_counter_does_not_move_the_last_counter_but_a_jump_resynchronises() -> None:
+    receiver = E2EReceiver(error_limit=9, max_delta=2)
+    assert classify_all(receiver, [5, 5, 7, 10, 11]) == [
+        E2EStatus.OK,
+        E2EStatus.REPEATED,
+        E2EStatus.OK_SOME_LOST,  # 5 → 7: the largest step still "some lost"
+        E2EStatus.WRONG_SEQUENCE,  # 7 → 10: one more
+        E2EStatus.OK,
+    ]
+    assert receiver.last_counter == 11
+    assert (receiver.score, receiver.sequence_score) == (1, 2)  # +1 +1 (errors) −1 (the last OK) from 1 … 0 floor
+
+
+def test_some_lost_frames_neither_add_to_nor_pay_off_the_net_score() -> None:
+    receiver = E2EReceiver(error_limit=9)
+    classify_all(receiver, [0, None, None])
+    assert receiver.score == 2
+    assert receiver.classify(3, crc_ok=True) is E2EStatus.OK_SOME_LOST
+    assert receiver.score == 2
+    assert receiver.classify(4, crc_ok=True) is E2EStatus.OK
+    assert receiver.score == 1
+
+
+def test_the_sequence_score_decays_on_fresh_frames_counting_some_lost_ones() -> None:
+    receiver = E2EReceiver(error_limit=9, sequence_decay_frames=2)
+    classify_all(receiver, [0, 0, 0])
+    assert receiver.sequence_score == 2
+    classify_all(receiver, [2, 4])  # two "some lost": fresh, so they count toward a decay
+    assert receiver.sequence_score == 1
+    classify_all(receiver, [5])
+    receiver.classify(5, crc_ok=True)  # a repeat restarts the run: 5 is not the second fresh frame of a pair
+    classify_all(receiver, [6])
+    assert receiver.sequence_score == 2
+    classify_all(receiver, [7, 8, 9, 10, 11, 12])
+    assert receiver.sequence_score == 0
+    classify_all(receiver, [13, 14, 15])  # nothing to decay: the run does not build up in advance
+    receiver.classify(15, crc_ok=True)
+    assert receiver.sequence_score == 1
+    classify_all(receiver, [0])
+    assert receiver.sequence_score == 1
+
+
+def test_check_reads_a_decoded_frames_counter_and_crc_verdict() -> None:
+    class Frame:
+        def __init__(self, counter: int | None, crc_ok: bool) -> None:
+            self.counter, self.crc_ok = counter, crc_ok
+
+    receiver = E2EReceiver(error_limit=5)
+    assert receiver.check(Frame(4, True)) is E2EStatus.OK
+    assert receiver.check(Frame(5, False)) is E2EStatus.WRONG_CRC
+    assert receiver.check(Frame(5, True)) is E2EStatus.OK
+
+
+def test_reset_forgets_the_counter_and_both_scores() -> None:
+    receiver = E2EReceiver(error_limit=9)
+    classify_all(receiver, [4, 4, None])
+    assert (receiver.score, receiver.sequence_score, receiver.last_counter) == (2, 1, 4)
+    receiver.reset()
+    assert (receiver.score, receiver.sequence_score, receiver.last_counter) == (0, 0, None)
+    assert receiver.classify(9, crc_ok=True) is E2EStatus.OK  # any counter is the first after a reset
+
+
+def test_the_status_predicates() -> None:
+    assert {s for s in E2EStatus if s.fresh} == {E2EStatus.OK, E2EStatus.OK_SOME_LOST}
+    assert {s for s in E2EStatus if s.is_error} == {E2EStatus.REPEATED, E2EStatus.WRONG_SEQUENCE, E2EStatus.WRONG_CRC}
+    assert {s for s in E2EStatus if s.is_sequence_error} == {E2EStatus.REPEATED, E2EStatus.WRONG_SEQUENCE}

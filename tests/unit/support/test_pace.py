@@ -137,3 +137,18 @@ def test_the_load_scale_is_measured_now_against_the_hosts_reference(monkeypatch:
     assert pace.slowdown_now() == pytest.approx(45.0)  # the host got busier since the run measured 20
     monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.01)
     assert pace.slowdown_now() == 20.0  # never below the run's scale
+
+
+def test_each_vm_test_measures_the_scale_again_never_below_the_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(pace.REFERENCE_ENV, "0.002")
+    monkeypatch.setenv(pace.MEASURED_ENV, "1")
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.1)
+    assert pace.scale_for_a_test(24.0) == pytest.approx(50.0)  # the host got busier since the VM booted
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.02)
+    assert pace.scale_for_a_test(24.0) == 24.0  # a calmer moment does not tighten what the run was sized for
+    monkeypatch.setenv(pace.MEASURED_ENV, "0")
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.1)
+    assert pace.scale_for_a_test(30.0) == 30.0  # a forced figure is used as it is
+    monkeypatch.setenv(pace.MEASURED_ENV, "1")
+    monkeypatch.delenv(pace.REFERENCE_ENV)
+    assert pace.scale_for_a_test(1.0) == 1.0  # the host: no reference, no measurement
