@@ -2,8 +2,9 @@
 
 mutmut runs, for each mutant, every test in ``[tool.mutmut]``'s selection that
 reached the mutated function in its stats run. The envelope, the ramp planner,
-the wire rounding and the E2E protection are reached by nearly every test of
-the node and the controller (each builds an envelope and talks E2E), so one
+the wire rounding, the E2E protection and the node's link monitor are reached
+by nearly every test of the node and the controller (each builds an envelope
+and talks E2E), so one
 surviving mutant there cost the whole selection, 1–2 min on the shared
 machine. Under mutmut (``MUTANT_UNDER_TEST`` names a mutant) this plugin keeps
 only the tests written for the mutant's module (:data:`MUTANT_TESTS`): a
@@ -29,6 +30,8 @@ MUTANT_TESTS: dict[str, tuple[str, ...]] = {
     "millctl.safety.slew": ("tests/unit/test_slew.py",),
     "millctl.protocol.e2e": ("tests/unit/protocol/test_e2e.py",),
     "firmware_sim.monitor": ("tests/unit/node/test_monitor.py",),
+    # the link monitor on its own and the challenge's rules; every node test talks E2E and feeds the watchdog
+    "firmware_sim.link": ("tests/unit/node/test_link.py", "tests/unit/node/test_heartbeat_challenge.py"),
 }
 """Mutated module → the test files (paths from the repository root) that judge its mutants."""
 

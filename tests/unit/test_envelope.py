@@ -269,6 +269,7 @@ def test_rates_at_and_past_each_drives_acceleration(envelope: Envelope) -> None:
         ("omega_r_rate", 40.0, "rpm/s"),
         ("omega_v_rate", 120.0, "rpm/s"),
     ]
+    assert [r.value for r in envelope.check_rates(0.0, -1.0).refusals] == [0.0, -1.0]  # each refusal names its value
     assert not envelope.check_rates(10.0, math.inf).ok
 
 
@@ -297,3 +298,19 @@ def test_allows_is_the_verdict_of_check_on_a_grid_with_and_without_tolerance(con
                 verdict = env.check(w_r, w_v, tolerance_rpm=tolerance)
                 assert env.allows(w_r, w_v, tolerance) == verdict.ok, (w_r, w_v, tolerance)
                 assert bool(env.contains(w_r, w_v, tolerance)) == verdict.ok, (w_r, w_v, tolerance)
+
+
+def test_the_scalar_inside_test_has_no_tolerance_unless_given(envelope: Envelope) -> None:
+    limit = envelope.limit_rpm(800.0)
+    assert not envelope.allows(limit + 0.5, 800.0)
+    assert envelope.allows(limit + 0.5, 800.0, tolerance_rpm=1.0)
+    assert envelope.allows(limit, 800.0)
+
+
+def test_the_scalar_inside_test_allows_only_standstill_where_the_law_gives_no_real_limit(config: MillConfig) -> None:
+    """Above ~995 rpm the rods detach every cycle at any ω_r under the paper's worst-phase law: ω_r ≤ 0."""
+    envelope = Envelope.from_config(config, law=LimitLaw.PAPER_EVERY_CYCLE)
+    assert envelope.limit_rpm(1100.0) <= 0.0
+    assert envelope.allows(0.0, 1100.0)
+    assert not envelope.allows(1.0, 1100.0)
+    assert not envelope.allows(0.1, 1100.0)

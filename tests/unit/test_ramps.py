@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,8 +11,8 @@ from hypothesis import strategies as st
 
 from millctl.config import LimitLaw, MillConfig
 from millctl.safety import Envelope, InterlockRefused
-from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint
-from millctl.safety.wire import rounded_samples
+from millctl.safety.ramps import STANDSTILL, RampPlanner, Segment, SpeedPoint, Trajectory, first_violation
+from millctl.safety.wire import _crossings, first_wire_violation, rounded_samples
 
 
 def envelope_for(config: MillConfig, law: LimitLaw) -> Envelope:
@@ -164,3 +166,174 @@ def test_every_rounded_sample_of_an_accepted_linear_ramp_is_inside(
     for r, v in zip(w_r, w_v, strict=True):
         q = planner.snap(SpeedPoint(float(r), float(v)))
         assert envelope.check(q.omega_r_rpm, q.omega_v_rpm).ok, (law, start, target, q)
+
+
+# --- the segments and their sampling -------------------------------------------------------------------------------
+
+
+def test_a_segment_interpolates_between_its_instants_and_holds_its_ends_outside_them() -> None:
+    a, b = SpeedPoint(100.0, 600.0), SpeedPoint(140.0, 800.0)
+    segment = Segment(2.0, 4.0, a, b)
+    assert segment.at(3.0) == SpeedPoint(120.0, 700.0)
+    assert segment.at(2.5) == SpeedPoint(110.0, 650.0)
+    assert segment.at(1.0) == a  # before it began
+    assert segment.at(5.0) == b  # after it ended
+    assert Segment(0.0, 0.5, a, b).at(0.25) == SpeedPoint(120.0, 700.0)  # a segment shorter than a second
+
+
+def test_a_segment_of_no_duration_is_at_its_end() -> None:
+    a, b = SpeedPoint(100.0, 600.0), SpeedPoint(140.0, 800.0)
+    assert Segment(3.0, 3.0, a, b).at(3.0) == b
+    assert Segment(3.0, 3.0, a, b).at(2.0) == b
+
+
+def test_a_move_is_sampled_every_period_from_its_start_to_its_end() -> None:
+    a, b = SpeedPoint(100.0, 600.0), SpeedPoint(140.0, 800.0)
+    move = Trajectory(a, b, (Segment(0.0, 2.0, a, b),))
+    times, w_r, w_v = move.sample(dt_s=0.5)
+    assert times.tolist() == [0.0, 0.5, 1.0, 1.5, 2.0]
+    assert w_r.tolist() == [100.0, 110.0, 120.0, 130.0, 140.0]
+    assert w_v.tolist() == [600.0, 650.0, 700.0, 750.0, 800.0]
+    times, w_r, _ = move.sample(dt_s=10.0)  # a period longer than the move: its two ends
+    assert times.tolist() == [0.0, 2.0]
+    assert w_r.tolist() == [100.0, 140.0]
+
+
+# --- what the planner refuses and how it plans ---------------------------------------------------------------------
+
+
+def test_a_target_outside_is_refused_as_the_target(planner: RampPlanner) -> None:
+    with pytest.raises(InterlockRefused, match=r"^target refused by the interlock: ω_r = 250\.0"):
+        planner.plan(SpeedPoint(100.0, 800.0), SpeedPoint(250.0, 800.0))
+
+
+def test_a_move_from_outside_the_envelope_is_refused_naming_its_start(planner: RampPlanner) -> None:
+    with pytest.raises(InterlockRefused, match=r"^ramp start refused by the interlock: ω_r = 250\.0") as refused:
+        planner.plan(SpeedPoint(250.0, 800.0), SpeedPoint(100.0, 800.0))
+    assert refused.value.verdict == planner.envelope.check(250.0, 800.0)
+
+
+def test_the_stop_is_planned_from_outside_the_envelope(planner: RampPlanner) -> None:
+    """A mill found outside (a law changed under it, an over-speed) must still get its controlled stop."""
+    outside = SpeedPoint(250.0, 800.0)
+    assert not planner.envelope.check(250.0, 800.0).ok
+    stop = planner.plan_stop(outside)
+    assert [s.end for s in stop.segments] == [SpeedPoint(0.0, 800.0), STANDSTILL]
+    assert stop.duration_s == pytest.approx(250.0 / 40.0 + 800.0 / 120.0)
+
+
+def test_each_drive_ramps_at_its_own_requested_rate(planner: RampPlanner) -> None:
+    move = planner.plan(STANDSTILL, SpeedPoint(180.0, 800.0), rotary_rate_rpm_s=20.0, vibration_rate_rpm_s=50.0)
+    assert move.duration_s == pytest.approx(800.0 / 50.0 + 180.0 / 20.0)
+    linear = planner.plan_linear(SpeedPoint(100.0, 600.0), SpeedPoint(150.0, 800.0), 10.0, 100.0)
+    assert linear.duration_s == pytest.approx(50.0 / 10.0)  # the rotor is the slower one
+    linear = planner.plan_linear(SpeedPoint(100.0, 600.0), SpeedPoint(150.0, 800.0), 40.0, 20.0)
+    assert linear.duration_s == pytest.approx(200.0 / 20.0)  # vibration is the slower one
+
+
+def test_a_linear_ramp_starts_at_its_start_at_once(planner: RampPlanner) -> None:
+    start, target = SpeedPoint(100.0, 600.0), SpeedPoint(150.0, 800.0)
+    move = planner.plan_linear(start, target)
+    assert (move.start, move.end) == (start, target)
+    assert [(s.t0_s, s.start, s.end) for s in move.segments] == [(0.0, start, target)]
+    assert move.at(0.0) == start
+    standing = planner.plan_linear(target, target)
+    assert standing.segments == ()
+    assert standing.duration_s == 0.0
+
+
+def test_a_move_between_two_running_points_keeps_the_lower_rotor_speed(planner: RampPlanner) -> None:
+    """Where the limit rises with ω_v the corridor's floor is the lower end's ω_r, not the limit at a lower ω_v."""
+    env = planner.envelope
+    assert planner.lowest_limit_rpm(1000.0, 800.0) == pytest.approx(env.limit_rpm(800.0))
+    assert planner.lowest_limit_rpm(800.0, 1000.0) == pytest.approx(env.limit_rpm(800.0))
+    assert env.limit_rpm(65.0) < 150.0  # the limit at a low ω_v is below both ends' ω_r
+    move = planner.plan(SpeedPoint(150.0, 800.0), SpeedPoint(180.0, 1000.0))
+    assert move.start == SpeedPoint(150.0, 800.0)
+    assert [s.end for s in move.segments] == [SpeedPoint(150.0, 1000.0), SpeedPoint(180.0, 1000.0)]
+    assert move.duration_s == pytest.approx(200.0 / 120.0 + 30.0 / 40.0)  # each ramp by its own change of speed
+
+
+def test_the_wire_check_uses_the_planners_resolution(config: MillConfig) -> None:
+    """On a 1 rpm grid this line rounds outside on its way; on the 0.1 rpm grid it does not."""
+    start, target = SpeedPoint(165.0, 538.0), SpeedPoint(171.0, 631.0)
+    envelope = Envelope.from_config(config)
+    RampPlanner(envelope).plan_linear(start, target)
+    with pytest.raises(InterlockRefused, match=r"\(as sent, rounded to 1 rpm\)"):
+        RampPlanner(envelope, resolution_rpm=1.0).plan_linear(start, target)
+
+
+def test_the_first_violation_is_judged_on_the_wires_grid_by_default(planner: RampPlanner) -> None:
+    start, target = SpeedPoint(174.0, 671.3), SpeedPoint(153.7, 382.0)  # issue 15 item 8's line
+    move = Trajectory(start, target, (Segment(0.0, 10.0, start, target),))
+    found = first_violation(move, planner.envelope)
+    assert found == first_violation(move, planner.envelope, 0.1)
+    assert found is not None
+    t_s, verdict = found
+    assert t_s == pytest.approx(7.1673, abs=1e-4)
+    assert verdict.refusals[0].value == pytest.approx(159.5)
+
+
+def test_the_configured_planner_dwells_five_time_constants_of_the_slower_drive(config: MillConfig) -> None:
+    drives = config.drives
+    planner = RampPlanner.from_config(config)
+    assert planner.settle_s == 5.0 * max(drives.rotary.time_constant_s, drives.vibration.time_constant_s)
+    assert planner.resolution_rpm == 0.1
+    assert planner.envelope == Envelope.from_config(config)
+    corrected = envelope_for(config, LimitLaw.CORRECTED_EVERY_PHASE)
+    assert RampPlanner.from_config(config, corrected).envelope is corrected
+
+
+def test_the_margin_of_a_move_is_its_closest_approach_to_the_rotary_limit(planner: RampPlanner) -> None:
+    env = planner.envelope
+    move = planner.plan(STANDSTILL, SpeedPoint(180.0, 800.0))  # ω_v up at standstill, then ω_r up at 800 rpm
+    assert move.min_margin_rpm(env) == pytest.approx(env.limit_rpm(800.0) - 180.0)
+    assert move.min_margin_rpm(env, dt_s=0.01) == pytest.approx(env.limit_rpm(800.0) - 180.0)
+    hold = planner.plan(SpeedPoint(100.0, 800.0), SpeedPoint(100.0, 1000.0))
+    assert hold.min_margin_rpm(env) == pytest.approx(env.limit_rpm(800.0) - 100.0)  # lowest limit at its start
+    assert planner.plan(STANDSTILL, SpeedPoint(0.0, 800.0)).min_margin_rpm(env) == math.inf  # the rotor never turns
+    # a line runs closest to the (convex) limit between its ends: found within 0.001 rpm at the default 50 ms
+    line = planner.plan_linear(SpeedPoint(140.0, 300.0), SpeedPoint(200.0, 1000.0))
+    closest = line.min_margin_rpm(env, dt_s=0.001)
+    assert closest < min(env.limit_rpm(300.0) - 140.0, env.limit_rpm(1000.0) - 200.0) - 1.0
+    assert line.min_margin_rpm(env) == pytest.approx(closest, abs=1e-3)
+
+
+# --- the wire's grid (millctl.safety.wire) -------------------------------------------------------------------------
+
+
+def test_a_line_crosses_each_half_grid_boundary_strictly_between_its_ends() -> None:
+    """Exact binary fractions: the boundaries of the 0.5 grid lie at 0.25, 0.75, 1.25, …"""
+    assert _crossings(0.0, 1.0, 0.5).tolist() == [0.25, 0.75]
+    assert sorted(_crossings(1.0, 0.0, 0.5).tolist()) == [0.25, 0.75]  # falling: the same boundaries
+    assert _crossings(0.0, 2.0, 0.5).tolist() == [0.125, 0.375, 0.625, 0.875]
+    assert _crossings(0.0, 0.5, 0.5).tolist() == [0.5]  # one boundary
+    assert _crossings(0.25, 1.25, 0.5).tolist() == [0.5]  # boundaries at both ends are not crossings
+    assert _crossings(-1.0, 0.0, 0.5).tolist() == [0.25, 0.75]  # the grid is the same below zero
+    assert _crossings(0.1, 0.2, 0.5).tolist() == []  # between two boundaries
+    assert _crossings(0.7, 0.7, 0.5).tolist() == []  # a point
+
+
+def test_rounded_samples_are_each_stretch_between_crossings_and_both_mixes_at_each_crossing() -> None:
+    """(0, 0) → (1, 0.5) on a 0.5 grid: ω_r crosses at f = ¼ and ¾, ω_v at ½ (worked by hand)."""
+    fractions, w_r, w_v = rounded_samples((0.0, 0.0), (1.0, 0.5), 0.5)
+    at = [0.0, 0.125, 0.375, 0.625, 0.875, 1.0]  # the ends and the middle of each stretch
+    crossings = [0.25, 0.5, 0.75]
+    assert fractions.tolist() == [*at, *crossings, *crossings]
+    # the stretches, then each crossing with ω_r from before and ω_v from after, then the other way round
+    assert w_r.tolist() == [*[0.0, 0.0, 0.5, 0.5, 1.0, 1.0], *[0.0, 0.5, 0.5], *[0.5, 0.5, 1.0]]
+    assert w_v.tolist() == [*[0.0, 0.0, 0.0, 0.5, 0.5, 0.5], *[0.0, 0.5, 0.5], *[0.0, 0.0, 0.5]]
+
+
+def test_the_first_wire_violation_is_the_earliest_over_every_segment(planner: RampPlanner) -> None:
+    """The first segment is inside; in the second the earliest pair outside is a mix at a crossing (f = 5/12)."""
+    env = planner.envelope
+    corner, end = (183.5, 739.7), (184.1, 740.0)
+    segments = [(0.0, 2.0, (150.0, 739.7), corner), (2.0, 14.0, corner, end)]
+    assert first_wire_violation(segments[:1], env, 0.1) is None
+    found = first_wire_violation(segments, env, 0.1)
+    assert found is not None
+    t_s, verdict = found
+    assert t_s == pytest.approx(2.0 + 12.0 * 5.0 / 12.0)
+    assert verdict.refusals[0].quantity == "omega_r"
+    assert verdict.refusals[0].value == pytest.approx(183.8)

@@ -128,6 +128,22 @@ def test_receiver_rejects_nonsense_limits() -> None:
         E2EReceiver(error_limit=0)
     with pytest.raises(ValueError):
         E2EReceiver(error_limit=5, max_delta=15)
+    with pytest.raises(ValueError):
+        E2EReceiver(error_limit=5, max_delta=0)
+
+
+def test_a_receiver_that_allows_no_lost_frame_takes_only_the_next_counter() -> None:
+    receiver = E2EReceiver(error_limit=5, max_delta=1)
+    assert receiver.classify(3, crc_ok=True) is E2EStatus.OK
+    assert receiver.classify(4, crc_ok=True) is E2EStatus.OK
+    assert receiver.classify(6, crc_ok=True) is E2EStatus.WRONG_SEQUENCE
+    assert E2EReceiver(error_limit=5, max_delta=14).max_delta == 14  # the largest a 4-bit counter can tell
+
+
+def test_a_new_alive_counter_starts_at_zero() -> None:
+    counter = AliveCounter()
+    assert counter.value == 0
+    assert [counter.next() for _ in range(17)] == [*range(16), 0]
 
 
 def test_a_second_sender_answering_each_frame_with_counter_plus_one_faults_the_link() -> None:
