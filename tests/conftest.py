@@ -24,7 +24,9 @@ from tests.support.tiers import (
     pytest_collection_modifyitems,
     pytest_make_collect_report,
     pytest_runtest_makereport,
+    pytest_sessionfinish,
     pytest_terminal_summary,
+    pytest_testnodedown,
 )
 
 __all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
@@ -32,7 +34,9 @@ __all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
     "pytest_collection_modifyitems",
     "pytest_make_collect_report",
     "pytest_runtest_makereport",
+    "pytest_sessionfinish",
     "pytest_terminal_summary",
+    "pytest_testnodedown",
 ]
 
 REPO = Path(__file__).resolve().parents[1]

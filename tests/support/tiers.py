@@ -21,6 +21,12 @@ At the end the tier prints its closing line,
 ``TIER unit: 812 passed, 0 failed, 0 errors, 0 skipped (3 deselected)``, and
 appends it to the file named by ``$MILLCTL_TIER_SUMMARY`` (if set) for
 ``.ci/test`` and ``.ci/run`` to print together.
+
+Under pytest-xdist (``-n 2``, the unit tier) the workers collect and run the
+tests and the controller only counts their reports: a worker's skip is turned
+into a failure where it happens (its report reaches the controller as failed),
+the closing line is the controller's alone, and the deselected count, which
+xdist does not forward, comes back in each worker's ``workeroutput``.
 """
 
 from __future__ import annotations
@@ -36,6 +42,9 @@ from _pytest.reports import CollectReport, TestReport
 
 SUMMARY_ENV = "MILLCTL_TIER_SUMMARY"
 COUNTED = ("passed", "failed", "error", "skipped", "deselected", "xfailed", "xpassed")
+DESELECTED_KEY = "millctl_deselected"
+"""The key of a pytest-xdist worker's ``workeroutput`` that carries how many tests it deselected."""
+_deselected_by_workers = pytest.StashKey[int]()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -114,9 +123,34 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         items[:] = kept
 
 
-def closing_line(tier: str, stats: dict[str, list[Any]]) -> str:
-    """``TIER name: N passed, N failed, N errors, N skipped`` (+ deselected/xfail when there are any)."""
+def _is_xdist_worker(config: pytest.Config) -> bool:
+    return hasattr(config, "workerinput")
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """In a pytest-xdist worker: hand the number of deselected tests to the controller."""
+    config = session.config
+    if _is_xdist_worker(config):
+        reporter = config.pluginmanager.get_plugin("terminalreporter")
+        deselected = len(reporter.stats.get("deselected", [])) if reporter is not None else 0
+        config.workeroutput[DESELECTED_KEY] = deselected  # type: ignore[attr-defined]
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node: Any, error: object) -> None:
+    """In the pytest-xdist controller: every worker collects the whole tier, so each deselects the same tests."""
+    count = int(getattr(node, "workeroutput", {}).get(DESELECTED_KEY, 0))
+    config: pytest.Config = node.config
+    config.stash[_deselected_by_workers] = max(config.stash.get(_deselected_by_workers, 0), count)
+
+
+def closing_line(tier: str, stats: dict[str, list[Any]], deselected_elsewhere: int = 0) -> str:
+    """``TIER name: N passed, N failed, N errors, N skipped`` (+ deselected/xfail when there are any).
+
+    ``deselected_elsewhere``: tests the xdist workers deselected (the controller's own stats have none).
+    """
     n = {key: len(stats.get(key, [])) for key in COUNTED}
+    n["deselected"] = max(n["deselected"], deselected_elsewhere)
     line = f"{tier}: {n['passed']} passed, {n['failed']} failed, {n['error']} errors, {n['skipped']} skipped"
     extras = [f"{n[key]} {key}" for key in ("deselected", "xfailed", "xpassed") if n[key]]
     return line + (f" ({', '.join(extras)})" if extras else "")
@@ -124,10 +158,10 @@ def closing_line(tier: str, stats: dict[str, list[Any]]) -> str:
 
 def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pytest.Config) -> None:
     tier = _tier(config)
-    if tier is None:
+    if tier is None or _is_xdist_worker(config):
         return
     stats: dict[str, list[Any]] = terminalreporter.stats
-    line = closing_line(tier, stats)
+    line = closing_line(tier, stats, config.stash.get(_deselected_by_workers, 0))
     accepted = sorted({skip_reason(r) for r in stats.get("skipped", [])})
     terminalreporter.write_sep("=", f"TIER {line}")
     for reason in accepted:

@@ -6,14 +6,22 @@ stayed green. Each test runs a small pytest session in-process (pytester).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
+
+REPO = Path(__file__).resolve().parents[3]
 
 CONFTEST = """
 from tests.support.tiers import (
     pytest_addoption, pytest_collection_modifyitems, pytest_make_collect_report,
-    pytest_runtest_makereport, pytest_terminal_summary,
+    pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary, pytest_testnodedown,
 )
+from pathlib import Path
+
 import pytest
+
+REPO = Path(__file__).resolve().parents[3]
 
 @pytest.fixture(params=["virtual", "udp_multicast", "socketcan"])
 def transport(request):
@@ -23,7 +31,11 @@ def transport(request):
 """
 
 TESTS = """
+from pathlib import Path
+
 import pytest
+
+REPO = Path(__file__).resolve().parents[3]
 
 def test_plain():
     assert True
@@ -109,4 +121,22 @@ def test_the_closing_line_counts_each_outcome_and_goes_to_the_summary_file(
     monkeypatch.setenv("MILLCTL_TIER_SUMMARY", str(summary))
     run(suite, "--tier", "hil-transport", "--may-skip", "inside one process")
     expected = "hil-transport: 2 passed, 0 failed, 1 errors, 1 skipped (1 xfailed) [pytest exit 1]"
+    assert summary.read_text().splitlines() == [expected]
+
+
+def test_under_xdist_the_controller_alone_writes_the_closing_line_with_the_workers_counts(
+    suite: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The unit tier runs on two pytest-xdist workers: a skip still fails, and one closing line counts it all."""
+    summary = suite.path / "tiers.txt"
+    monkeypatch.setenv("MILLCTL_TIER_SUMMARY", str(summary))
+    monkeypatch.setenv("PYTHONPATH", str(REPO))
+    result = suite.runpytest_subprocess(
+        *PLAIN, "-n", "2", "--tier", "vcan", "--transports", "virtual,udp_multicast", "-k", "not test_plain"
+    )
+    assert result.ret == 1
+    result.stdout.fnmatch_lines(["*tier 'vcan' must run this case, but it skipped: *"])
+    # test_plain and socketcan's case deselected (by -k and --transports, in each worker); the virtual case's
+    # call-time skip a failure, udp_multicast's setup-time skip an error
+    expected = "vcan: 0 passed, 1 failed, 1 errors, 0 skipped (2 deselected, 1 xfailed) [pytest exit 1]"
     assert summary.read_text().splitlines() == [expected]
