@@ -337,3 +337,17 @@ def test_the_first_wire_violation_is_the_earliest_over_every_segment(planner: Ra
     assert t_s == pytest.approx(2.0 + 12.0 * 5.0 / 12.0)
     assert verdict.refusals[0].quantity == "omega_r"
     assert verdict.refusals[0].value == pytest.approx(183.8)
+
+
+def test_a_planner_needs_a_positive_grid_and_a_dwell_not_below_zero(config: MillConfig) -> None:
+    envelope = Envelope.from_config(config)
+    with pytest.raises(ValueError, match=r"^resolution_rpm = 0\.0 must be > 0$"):
+        RampPlanner(envelope, resolution_rpm=0.0)
+    with pytest.raises(ValueError, match=r"^settle_s = -1\.0 must be ≥ 0$"):
+        RampPlanner(envelope, settle_s=-1.0)
+    assert RampPlanner(envelope, settle_s=0.0).settle_s == 0.0
+
+
+def test_a_rate_beyond_the_drive_is_refused_as_the_ramp(planner: RampPlanner) -> None:
+    with pytest.raises(InterlockRefused, match=r"^ramp refused by the interlock: omega_r_rate = 1000\.0 rpm/s"):
+        planner.plan_linear(STANDSTILL, SpeedPoint(100.0, 800.0), rotary_rate_rpm_s=1000.0)
