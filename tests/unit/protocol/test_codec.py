@@ -225,6 +225,38 @@ def test_codec_loads_an_explicit_dbc_path_and_reports_a_missing_one(tmp_path: An
         Codec(tmp_path / "missing.dbc")
 
 
+@pytest.mark.parametrize(
+    "crc", ["SG_ crc : 0|4@1+ (1,0) [0|15]", "SG_ crc : 7|8@0+ (1,0) [0|255]", "SG_ crc : 0|8@1- (1,0) [-128|127]"]
+)
+def test_a_dbc_whose_crc_is_not_byte_0_is_refused_when_loaded(tmp_path: Any, crc: str) -> None:
+    """The encoder writes the CRC into byte 0 of the frame: a DBC that puts it elsewhere is refused, by name."""
+    text = CODEC.path.read_text(encoding="utf-8")
+    dbc = tmp_path / "moved-crc.dbc"
+    dbc.write_text(text.replace("SG_ crc : 0|8@1+ (1,0) [0|255]", crc, 1), encoding="utf-8")
+    with pytest.raises(ProtocolError, match=r"Command\.crc must be byte 0"):
+        Codec(dbc)
+
+
+def test_the_crc_is_byte_0_over_bytes_1_to_7_of_what_the_dbc_packs() -> None:
+    """Byte 0 of every E2E frame is the CRC of its data ID and bytes 1-7, the rest is the DBC's packing."""
+    messages: list[MillMessage] = [
+        Command(CommandCode.ARM),
+        Heartbeat(ControllerState.RUNNING, 0xBEEF),
+        Setpoints(100.0, 600.0, 300.0, True),
+    ]
+    for message in messages:
+        kind = type(message)
+        frame = CODEC.encode(message, counter=7)
+        data_id = CODEC.data_id(kind)
+        assert data_id is not None
+        values = {f.name: getattr(message, f.name) for f in dataclasses.fields(message)}
+        packed = CODEC.database.get_message_by_name(kind.__name__).encode(
+            {**values, "counter": 7, "crc": frame.data[0]}, strict=True
+        )
+        assert bytes(frame.data) == packed
+        assert frame.data[0] == e2e_crc(data_id, bytes(frame.data[1:]))
+
+
 FRAME_IDS = [CODEC.frame_id(kind) for kind in MESSAGE_TYPES]
 
 
