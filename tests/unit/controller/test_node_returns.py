@@ -8,7 +8,9 @@ was already commanded by the trip); any other state is no cause.
 
 from __future__ import annotations
 
-from millctl.controller import ControllerState
+import pytest
+
+from millctl.controller import CommandRefused, ControllerState
 from millctl.protocol import NodeState
 from tests.unit.controller.bench import ScriptedNode
 
@@ -39,3 +41,10 @@ def test_a_node_heard_again_armed_after_silence_is_no_cause(bench: ScriptedNode)
     silent_after_arming(bench)
     bench.run(0.3, state=NodeState.ARMED)
     assert not uncommanded_running_reported(bench)
+
+
+def test_a_reset_while_the_node_is_still_silent_is_refused_naming_the_stale_stream(bench: ScriptedNode) -> None:
+    silent_after_arming(bench)
+    with pytest.raises(CommandRefused, match=r"^reset refused: .*stale"):
+        bench.controller.reset()
+    assert bench.controller.state is ControllerState.TRIPPED
