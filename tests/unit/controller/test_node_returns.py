@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import pytest
 
+from millctl.config import MillConfig
 from millctl.controller import CommandRefused, ControllerState
-from millctl.protocol import NodeState
+from millctl.protocol import FurnaceTelemetry, NodeState, NodeStatus
 from tests.unit.controller.bench import ScriptedNode
 
 UNCOMMANDED = "node reports RUNNING, which the controller"
@@ -48,3 +49,19 @@ def test_a_reset_while_the_node_is_still_silent_is_refused_naming_the_stale_stre
     with pytest.raises(CommandRefused, match=r"^reset refused: .*stale"):
         bench.controller.reset()
     assert bench.controller.state is ControllerState.TRIPPED
+
+
+def test_a_node_whose_drive_telemetry_never_comes_trips_after_the_start_up_grace(
+    bench: ScriptedNode, config: MillConfig
+) -> None:
+    """The trip's stop then begins with no measured speed at all: its ceiling starts from what was commanded."""
+    steps = round((config.interlock.startup_grace_s + 0.3) / 0.01)
+    for i in range(steps):
+        if i % 5 == 0:
+            bench.say(NodeStatus(NodeState.DISABLED))
+            bench.say(FurnaceTelemetry(25.0, 25.0, 0.0, False))
+        bench.controller.tick()
+        bench.clock.advance(0.01)
+    assert bench.controller.measured is None
+    assert bench.controller.state is ControllerState.TRIPPED
+    assert "DriveTelemetry stale: never received" in bench.controller.trip_cause
