@@ -131,8 +131,9 @@ def test_under_xdist_the_controller_alone_writes_the_closing_line_with_the_worke
     summary = suite.path / "tiers.txt"
     monkeypatch.setenv("MILLCTL_TIER_SUMMARY", str(summary))
     monkeypatch.setenv("PYTHONPATH", str(REPO))
+    monkeypatch.setenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", "1")  # three interpreters: xdist is the one plugin needed
     result = suite.runpytest_subprocess(
-        *PLAIN, "-n", "2", "--tier", "vcan", "--transports", "virtual,udp_multicast", "-k", "not test_plain"
+        "-p", "xdist", "-n", "2", "--tier", "vcan", "--transports", "virtual,udp_multicast", "-k", "not test_plain"
     )
     assert result.ret == 1
     result.stdout.fnmatch_lines(["*tier 'vcan' must run this case, but it skipped: *"])
