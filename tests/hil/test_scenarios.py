@@ -133,7 +133,11 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
 
     mill.client.take_control()
     mill.client.arm()
-    assert mill.wait_state("ARMED")["node_state"] == "ARMED"
+    armed = mill.wait_state("ARMED")
+    assert armed["node_state"] == "ARMED"
+    # An ARM sent within a heartbeat period of the node's start is refused NOT_FRESH (no live heartbeat
+    # yet) and repeated until confirmed (docs/safety.md): counted, and not what this test is about.
+    refused_at_arm = armed["refused_setpoints"]
     mill.client.set_speeds(*LOW_RPM)
     mill.wait_speeds(*LOW_RPM, timeout_s=30.0)
 
@@ -152,7 +156,7 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
         mill.timeout(30.0),
         "the controlled stop to finish",
     )
-    assert stopped["refused_setpoints"] == 0  # the node never refused what the planner sent
+    assert stopped["refused_setpoints"] == refused_at_arm  # the node never refused what the planner sent
     if mill.probe is None:
         measured_s = time.time() - t_stop  # through the API: an upper bound of the stop's duration
     else:
@@ -169,7 +173,7 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
 def test_over_limit_setpoint_refused_by_the_controller(mill: Mill) -> None:
     mill.client.take_control()
     mill.client.arm()
-    mill.wait_state("ARMED")
+    refused_at_arm = mill.wait_state("ARMED")["refused_setpoints"]  # a start-up NOT_FRESH ARM is repeated
     t_request = time.time()
 
     with pytest.raises(InterlockRefusal, match=r"250\.0 rpm exceeds the limit 190\.0 rpm at ω_v = 800\.0 rpm"):
@@ -185,7 +189,7 @@ def test_over_limit_setpoint_refused_by_the_controller(mill: Mill) -> None:
         time.sleep(mill.timeout(0.5))
     after = mill.status()
     assert after["state"] == "ARMED" and after["node_state"] == "ARMED"
-    assert after["refused_setpoints"] == 0  # refused, not clamped: nothing reached the node
+    assert after["refused_setpoints"] == refused_at_arm  # refused, not clamped: nothing reached the node
     assert mill.at_standstill()
     if mill.probe is not None:
         sent = mill.probe.frames(t_request, lambda s: isinstance(s.message, Setpoints))
