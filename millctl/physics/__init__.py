@@ -14,7 +14,7 @@ errata table's figures.
 
 The names below are re-exported lazily (PEP 562): importing the interlock's
 :mod:`.limits` loads this package, and must not load numba and scipy with it (the
-controller service starts without them; in the VM tier that is a minute a process).
+interlock and the controller are closed forms; tests/unit/service/test_startup_imports.py).
 """
 
 from __future__ import annotations

@@ -10,18 +10,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from millctl.config.models import MillConfig
 from millctl.physics.dose import dose_rate_j_g_s
 from millctl.physics.model import MillModel
+from millctl.physics.telemetry import RevolutionSummary, revolution_summary
 from millctl.recipes.schema import HoldStep, PauseStep, RampStep, Recipe, WaitFurnaceStep
 from millctl.safety import InterlockRefused, Verdict
 from millctl.safety.ramps import STANDSTILL, RampPlanner, SpeedPoint, Trajectory
 from millctl.units import rpm_to_rad_s
-
-if TYPE_CHECKING:
-    from millctl.physics.telemetry import RevolutionSummary
 
 
 @dataclass(frozen=True)
@@ -117,10 +114,6 @@ class _Walker:
 
     def physics(self, point: SpeedPoint) -> RevolutionSummary:
         """The expected per-revolution physics at a speed pair (cached per pair)."""
-        # Imported here: the compiled physics (numba, scipy) loads with the first plan, not with
-        # every process that imports the recipe package (the controller service, the recipe runner).
-        from millctl.physics.telemetry import revolution_summary
-
         if point not in self._physics:
             self._physics[point] = revolution_summary(
                 self.model, rpm_to_rad_s(point.omega_r_rpm), rpm_to_rad_s(point.omega_v_rpm)
