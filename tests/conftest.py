@@ -11,6 +11,7 @@ kept in ``.hypothesis/fuzz`` and replayed first the next time.
 from __future__ import annotations
 
 import gc
+from collections.abc import Generator
 from pathlib import Path
 
 import pytest
@@ -53,20 +54,28 @@ def pytest_configure(config: pytest.Config) -> None:
     """
     take_over()
     config.pluginmanager.register(mutation_tests, "mutation_tests")
-    gc.disable()  # until the tests are collected: pytest_collection_finish
 
 
-def pytest_collection_finish(session: pytest.Session) -> None:
-    """Collected: what the imports left is kept for good (``gc.freeze``), then the cyclic collector runs again.
+@pytest.hookimpl(wrapper=True)
+def pytest_collection(session: pytest.Session) -> Generator[None, object, object]:
+    """No cyclic collection while the tests are collected; then what the imports left is kept for good.
+
+    A wrapper, so that the collector is switched on again however collection ends, and also in a
+    pytest-xdist controller, which collects nothing (xdist answers this hook there) and never
+    reaches ``pytest_collection_finish``.
 
     Importing the test modules (numba, scipy, textual, schemathesis…) leaves ~300 000 long-lived
     objects; each full collection during the tests would scan them all again (~0.15 s each, ~40 of
     them a run). Frozen, the collector only looks at what the tests make, and garbage the tests leave
     in reference cycles is found and finalized as before (so an unraisable exception still fails).
     """
-    gc.collect()
-    gc.freeze()
-    gc.enable()
+    gc.disable()
+    try:
+        return (yield)
+    finally:
+        gc.collect()
+        gc.freeze()
+        gc.enable()
 
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)

@@ -12,13 +12,10 @@ from the node's physics telemetry to end a step at its dose.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from millctl.config.models import ModelVariant
-
-if TYPE_CHECKING:  # annotations only: the recipe runner must not load the compiled physics
-    from millctl.physics.model import MillModel
-    from millctl.physics.telemetry import RevolutionSummary
+from millctl.physics.model import MillModel
+from millctl.physics.telemetry import RevolutionSummary
 
 
 def whole_mill_rate_hz(variant: ModelVariant, n_rods: int, reported_rate_hz: float) -> float:
