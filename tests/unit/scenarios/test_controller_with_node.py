@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from millctl.config import MillConfig
@@ -157,10 +157,15 @@ def test_a_set_with_a_refused_furnace_target_applies_no_part(rig: Rig) -> None:
 @given(
     moves=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(0, 1100), st.booleans()), min_size=1, max_size=3)
 )
+@example(moves=[(0.9838, 671.3, False), (0.9993, 382.0, True)])  # issue 15 item 8: (174.0, 671.3) → (153.7, 382.0)
 def test_the_planner_never_sends_what_the_node_refuses(
-    config: MillConfig, moves: list[tuple[float, int, bool]]
+    config: MillConfig, moves: list[tuple[float, float, bool]]
 ) -> None:
-    """SAFETY 13: controller and node share one limit module; random moves, sequenced or linear, are never refused."""
+    """SAFETY 13: controller and node share one limit module; random moves, sequenced or linear, are never refused.
+
+    The explicit example is the issue's linear move: the first wave's planner (6c184f8) sent it and the node
+    refused its rounded sample (159.2, 459.7); the six random examples alone pass on that code.
+    """
     rig = Rig(config)
     try:
         rig.start(0.0, 0.0)
