@@ -3,9 +3,11 @@
 Run only inside the hil tier's private network namespace (multicast must not
 leave the machine)::
 
-    tests/hil/in_netns .venv/bin/python -m bench.capture --seconds 10 --json FILE
+    tests/hil/rt tests/hil/in_netns .venv/bin/python -m bench.capture --seconds 10 --json FILE
 
-It writes a config (the packaged Set A with a udp_multicast ``[bus]``), starts
+Started under a real-time policy (``tests/hil/rt``, as the hil tiers run), it
+keeps that policy for the node and the service only (tests/support/realtime.py)
+and counts at the normal one. It writes a config (the packaged Set A with a udp_multicast ``[bus]``), starts
 ``python -m firmware_sim`` and ``millctl serve`` as separate processes, arms
 and runs the mill at 150/800 rpm through the service API (so every periodic
 frame flows), then counts every frame a third bus node receives during the
@@ -19,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,6 +37,7 @@ from millctl.protocol import default_codec
 from millctl.protocol.busload import worst_case_frame_bits
 from millctl.protocol.factory import open_bus
 from millctl.protocol.messages import MESSAGE_TYPES
+from tests.support import realtime
 
 MULTICAST_GROUP = "239.74.163.9"
 RUN_RPM = (150.0, 800.0)
@@ -66,17 +68,25 @@ def write_config(directory: Path) -> Path:
     return path
 
 
-def _wait(cond: Callable[[], object], timeout_s: float, what: str) -> None:
-    """Poll ``cond`` until it is true (errors while the service starts count as not yet)."""
+def _wait(cond: Callable[[], object], timeout_s: float, what: str, seen: Callable[[], str]) -> None:
+    """Poll ``cond`` until it is true (errors while the service starts count as not yet).
+
+    On timeout the error says what ``seen`` reports then (the controller's state and trip cause).
+    """
     deadline = time.monotonic() + timeout_s
+    last_error = "no answer yet"
     while time.monotonic() < deadline:
         try:
             if cond():
                 return
-        except Exception:  # the service is still starting
-            pass
+        except Exception as exc:  # the service is still starting
+            last_error = f"{type(exc).__name__}: {exc}"
         time.sleep(0.05)
-    raise TimeoutError(f"timed out waiting for {what}")
+    try:
+        state = seen()
+    except Exception as exc:
+        state = f"no status ({type(exc).__name__}: {exc}; before that: {last_error})"
+    raise TimeoutError(f"timed out after {timeout_s:g} s waiting for {what}; the service says: {state}")
 
 
 def _near(measured_rpm: float | None, target_rpm: float) -> bool:
@@ -93,22 +103,30 @@ def capture(window_s: float) -> dict[str, Any]:
         cfg_path = write_config(directory)
         config = load_config(cfg_path).config
         py = sys.executable
+        logs = [(directory / "node.log").open("wb"), (directory / "service.log").open("wb")]
         procs = [
-            subprocess.Popen([py, "-m", "firmware_sim", "--config", str(cfg_path)], stderr=subprocess.DEVNULL),
-            subprocess.Popen(
+            realtime.popen([py, "-m", "firmware_sim", "--config", str(cfg_path)], realtime=True, stderr=logs[0]),
+            realtime.popen(
                 [py, "-m", "millctl", "--config", str(cfg_path), "serve", "--socket", str(directory / "mill.sock")],
-                stderr=subprocess.DEVNULL,
+                realtime=True,
+                stderr=logs[1],
             ),
         ]
         bus = open_bus(config.bus)
         client = Client(directory / "mill.sock", name="bench")
+
+        def seen() -> str:
+            status = client.status()
+            return f"state {status.state}, trip cause {status.trip_cause!r}"
+
         try:
-            _wait(lambda: client.status().state == ControllerState.DISABLED, 30.0, "the controller to see the node")
+            seen_node = "the controller to see the node"
+            _wait(lambda: client.status().state == ControllerState.DISABLED, 30.0, seen_node, seen)
             client.take_control()
             client.arm()
-            _wait(lambda: client.status().state == ControllerState.ARMED, 10.0, "ARMED")
+            _wait(lambda: client.status().state == ControllerState.ARMED, 10.0, "ARMED", seen)
             client.set_speeds(*RUN_RPM)
-            _wait(lambda: _near(client.status().measured_rotary_rpm, RUN_RPM[0]), 60.0, "the run speed")
+            _wait(lambda: _near(client.status().measured_rotary_rpm, RUN_RPM[0]), 60.0, "the run speed", seen)
             state = client.status().state
             counts: Counter[int] = Counter()
             bits: Counter[int] = Counter()
@@ -121,12 +139,19 @@ def capture(window_s: float) -> dict[str, Any]:
                     counts[frame.arbitration_id] += 1
                     bits[frame.arbitration_id] += worst_case_frame_bits(len(frame.data), frame.is_extended_id)
             elapsed = time.monotonic() - start
+        except TimeoutError as exc:
+            for log in logs:
+                log.flush()
+            tails = [f"{log.name}: ...{Path(log.name).read_text(errors='replace')[-400:]}" for log in logs]
+            raise TimeoutError("\n".join([str(exc), *tails])) from None
         finally:
             client.close()
             bus.shutdown()
             for proc in procs:
                 proc.kill()
                 proc.wait()
+            for log in logs:
+                log.close()
     bitrate = config.bus.bitrate_bit_s
     frames = [
         {"name": names.get(fid, hex(fid)), "id": f"0x{fid:03X}", "frames": n, "rate_hz": n / elapsed}
@@ -152,6 +177,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not _only_loopback():
         print("error: run inside tests/hil/in_netns (udp_multicast must stay on this host)", file=sys.stderr)
         return 1
+    realtime.take_over()  # the real-time policy it was started with (if any) for the node and service only
     Path(args.json).write_text(json.dumps(capture(args.seconds), indent=1), encoding="utf-8")
     return 0
 

@@ -1,7 +1,8 @@
 """E-stop reaction under load: a node babbling at 1000 Hz, and a flood on 0x001 at the bus's maximum rate.
 
 Runs the adversary scenarios of ``tests/hil/test_adversary.py`` that measure
-them (on udp_multicast, inside ``tests/hil/in_netns``) ``trials`` times
+them (on udp_multicast, inside ``tests/hil/in_netns``, at the hil tiers' priority:
+``tests/hil/rt``) ``trials`` times
 through :func:`bench.safety_timing.hil_trials`, and prints median, p99 and
 max of the reaction (E-stop frame sent → the node's NodeStatus FAULT/ESTOP
 on the bus) against its bound, the ``node_reports_s`` of

@@ -446,8 +446,9 @@ def _safety(st: dict[str, Any]) -> list[str]:
     mz = bl["measured"]
     out += [
         f"Measured from a {mz['window_s']:.1f} s capture of a running service + node ({mz['controller_state']} at "
-        f"{mz['run_rpm'][0]:g}/{mz['run_rpm'][1]:g} rpm, `python -m bench.capture` in `tests/hil/in_netns`), each "
-        f"frame charged its worst-case length: **{g(mz['measured_load'])}** of {mz['bitrate_bit_s']} bit/s, against "
+        f"{mz['run_rpm'][0]:g}/{mz['run_rpm'][1]:g} rpm, `python -m bench.capture` under `tests/hil/rt` in "
+        f"`tests/hil/in_netns`), each frame charged its worst-case length: **{g(mz['measured_load'])}** of "
+        f"{mz['bitrate_bit_s']} bit/s, against "
         f"**{g(c['periodic_load'])}** computed for the periodic frames by `millctl bus load --json` "
         f"(ratio {g(bl['measured_over_computed_periodic'])}; total with event frames at {g(c['event_rate_hz'])} Hz: "
         f"{g(c['total_load'])}, target ≤ {g(c['target_load'])}).",

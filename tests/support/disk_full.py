@@ -24,6 +24,7 @@ from typing import Any, TypeVar
 from millctl.api.models import RecipeProgress
 from millctl.client import Client
 from millctl.records import read_records
+from tests.support import realtime
 from tests.support.pace import Deadline
 from tests.support.service import start_service, write_config
 
@@ -44,7 +45,19 @@ duration_s = 600
 CANDUMP = re.compile(r"^\([0-9.]+\) \S+ [0-9A-F]{3,8}#[0-9A-F]*( [RT])?$")
 
 
-def _until(condition: Callable[[], T | None], timeout_s: float, what: str) -> T:
+def _seen(client: Client) -> str:
+    """What the service says now, for a failure message: controller state, trip cause, recipe progress."""
+    try:
+        status, progress = client.status(), client.recipe().progress
+    except Exception as exc:
+        return f"no answer ({type(exc).__name__}: {exc})"
+    recipe = "no recipe"
+    if progress is not None:
+        recipe = f"recipe {progress.state} at step {progress.step} ({progress.reason!r})"
+    return f"controller {status.state}, trip cause {status.trip_cause!r}, {recipe}"
+
+
+def _until(condition: Callable[[], T | None], timeout_s: float, what: str, client: Client) -> T:
     """The first truthy answer of ``condition`` (errors count as not yet), within a wait that stretches with load."""
     deadline = Deadline(timeout_s)
     while not deadline.expired():
@@ -53,7 +66,15 @@ def _until(condition: Callable[[], T | None], timeout_s: float, what: str) -> T:
             if found:
                 return found
         time.sleep(0.1)
-    raise SystemExit(f"timed out after {deadline.describe()} waiting for {what}")
+    raise SystemExit(f"timed out after {deadline.describe()} waiting for {what}; the service says: {_seen(client)}")
+
+
+def _hold_step(client: Client) -> bool:
+    """Whether the recipe is in its hold step; a recipe that stopped before it ends the scenario at once."""
+    progress = client.recipe().progress
+    if progress is not None and progress.state.final:
+        raise SystemExit(f"the recipe stopped before its hold step: {_seen(client)}")
+    return progress is not None and progress.step == 2
 
 
 def _stopped(client: Client) -> RecipeProgress | None:
@@ -95,12 +116,12 @@ def main(directory: Path) -> int:
     try:
         with service.client("disk-full") as client, client.control():
             client.recipe_run_text("long-hold.toml", RECIPE)
-            _until(lambda: (p := client.recipe().progress) is not None and p.step == 2, 60.0, "the hold step")
+            _until(lambda: _hold_step(client), 60.0, "the hold step", client)
             seen["seq_before"] = client.events().last_seq
             filler = _fill(records)
-            warnings = _until(lambda: client.service().warnings, 30.0, "the records warning")
+            warnings = _until(lambda: client.service().warnings, 30.0, "the records warning", client)
             seen["warnings"] = warnings
-            progress = _until(lambda: _stopped(client), 60.0, "the recipe to stop")
+            progress = _until(lambda: _stopped(client), 60.0, "the recipe to stop", client)
             seen["recipe_state"], seen["recipe_reason"] = str(progress.state), progress.reason
             status = client.status()
             seen["state"], seen["trip_cause"] = str(status.state), status.trip_cause
@@ -110,7 +131,7 @@ def main(directory: Path) -> int:
             seen["records_events"] = [e.message for e in events if e.kind == "records"]
             seen["set_while_full"] = client.set_speeds(60.0, 300.0).state  # still commanded, records or not
             filler.unlink()
-            _until(lambda: not client.service().warnings, 30.0, "the warning to clear")
+            _until(lambda: not client.service().warnings, 30.0, "the warning to clear", client)
             seen["warnings_after_free"] = client.service().warnings
             client.stop()
     finally:
@@ -122,5 +143,6 @@ def main(directory: Path) -> int:
 
 
 if __name__ == "__main__":
+    realtime.take_over()  # a real-time policy it was started with (if any) is kept for its service only
     os.chdir(Path(__file__).resolve().parents[2])
     sys.exit(main(Path(sys.argv[1])))

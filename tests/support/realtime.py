@@ -4,7 +4,7 @@ A mill controller runs its control loop under a real-time policy (SCHED_FIFO or
 SCHED_RR, docs/deployment.md "Real-time priority"), so that other work on the
 machine cannot delay a heartbeat or a trip. The hil tiers do the same for the
 processes whose timing they assert (the 250 ms heartbeat watchdog, trips within
-~0.1 s): ``.ci/test`` starts pytest under ``chrt --rr 10``, and only the service
+~0.1 s): ``.ci/test`` starts pytest under ``chrt --rr 10`` (``tests/hil/rt``), and only the service
 and the node keep that policy; pytest itself, the probes, floods and clients run
 at the normal policy, like any other job.
 
@@ -136,7 +136,7 @@ def describe() -> str:
     if _launcher is None:
         return (
             "hil: the service and node run at the normal scheduling policy (pytest was not started under a "
-            "real-time policy; .ci/test starts the hil tiers under `chrt --rr 10` where permitted)"
+            "real-time policy; .ci/test starts the hil tiers under `chrt --rr 10` where permitted: tests/hil/rt)"
         )
     return f"hil: the service and node run at {_launcher.policy} (real-time); pytest and its helpers at SCHED_OTHER"
 

@@ -2,7 +2,9 @@
 
 The scenario runs in ``tests.support.disk_full`` under ``unshare -rm`` (no
 privilege needed, nothing outside sees the mount); this test judges what it
-printed.
+printed. It is started at the hil tiers' real-time policy, where there is one
+(tests/support/realtime.py), and keeps it for its service only, as every other
+hil service test does: the recipe's hold step must not depend on unrelated load.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import sys
 import pytest
 
 from tests.support.pace import stretched
+from tests.support.realtime import popen as realtime_popen
 from tests.support.service import REPO, private_dir
 
 
@@ -28,12 +31,17 @@ def _unshare_works() -> bool:
 @pytest.mark.skipif(not _unshare_works(), reason="needs unprivileged user and mount namespaces (unshare -rm)")
 def test_a_full_records_disk_keeps_the_mill_controlled_says_so_and_damages_nothing() -> None:
     with private_dir() as directory:
-        done = subprocess.run(
-            ["unshare", "-rm", sys.executable, "-m", "tests.support.disk_full", str(directory)],
-            cwd=REPO, capture_output=True, text=True, timeout=stretched(300.0), check=False,
-        )
-        assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    seen = json.loads(done.stdout.strip().splitlines()[-1])
+        argv = ["unshare", "-rm", sys.executable, "-m", "tests.support.disk_full", str(directory)]
+        scenario = realtime_popen(argv, realtime=True, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            out, err = scenario.communicate(timeout=stretched(300.0))
+        finally:
+            if scenario.poll() is None:
+                scenario.kill()
+                scenario.communicate()
+        stdout, stderr = out.decode(errors="replace"), err.decode(errors="replace")
+        assert scenario.returncode == 0, stdout[-3000:] + stderr[-3000:]
+    seen = json.loads(stdout.strip().splitlines()[-1])
     # visible: a status warning and an event, naming the cause
     assert seen["warnings"] and "No space left on device" in seen["warnings"][0]
     assert "the mill is controlled as before" in seen["warnings"][0]

@@ -198,6 +198,32 @@ def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench: Scr
     assert any(e.kind is EventKind.REFUSAL and "reset did not complete" in e.message for e in bench.events)
 
 
+def test_a_reset_given_up_unconfirmed_is_over_and_recorded_once(bench: ScriptedNode, config: MillConfig) -> None:
+    """A RESET the node does not confirm within interlock.command_confirm_s gives the reset up: the operator is
+    told once to clear the cause and retry, and a node that turns up DISABLED and clear afterwards does not
+    complete the given-up reset behind the operator's back (docs/safety.md#mutation-testing: `_lost`)."""
+    from millctl.controller.controller import RESET_TIMEOUT_S
+
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset()
+    lost_s = config.interlock.command_confirm_s + 0.3
+    assert lost_s + 0.3 < RESET_TIMEOUT_S  # the confirmation bound gives up first, before the reset's own timeout
+    bench.run(lost_s, state=NodeState.FAULT)  # the node refuses the RESET: its cause is still there
+
+    def given_up() -> list[str]:
+        refusals = [e.message for e in bench.events if e.kind is EventKind.REFUSAL]
+        return [message for message in refusals if "reset did not complete" in message]
+
+    assert len(given_up()) == 1 and "RESET" in given_up()[0], [e.message for e in bench.events]
+    bench.run(0.3, state=NodeState.DISABLED)  # DISABLED and clear, after the reset was given up
+    assert bench.controller.state is S.TRIPPED
+    bench.run(RESET_TIMEOUT_S, state=NodeState.DISABLED)
+    assert bench.controller.state is S.TRIPPED
+    assert len(given_up()) == 1, given_up()
+
+
 def test_a_reset_with_nothing_to_send_that_the_node_never_completes_is_given_up_after_its_timeout(
     bench: ScriptedNode,
 ) -> None:

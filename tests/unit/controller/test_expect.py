@@ -38,3 +38,161 @@ def test_a_stop_ceiling_starts_from_what_was_measured_when_the_drives_are_faster
 
 def test_a_stop_ceiling_with_nothing_measured_starts_from_what_was_commanded(expectation: SpeedExpectation) -> None:
     assert ceiling_at_start(expectation, None) == pytest.approx((100.0, 400.0))
+
+
+# -- the band outside a stop: what was commanded over the lag window, widened by the tolerance -------------
+
+WINDOW_S = 2.0
+DEBOUNCE = 3
+
+
+@pytest.fixture
+def fresh(config: MillConfig) -> SpeedExpectation:
+    """An expectation with nothing commanded yet (window 2 s, debounce 3, tolerance 3 rpm)."""
+    return SpeedExpectation(RampPlanner(Envelope.from_config(config)), TOL, WINDOW_S, DEBOUNCE)
+
+
+def test_with_nothing_commanded_the_band_is_standstill_within_the_tolerance(fresh: SpeedExpectation) -> None:
+    assert fresh.band(0.0) == ((-TOL, TOL), (-TOL, TOL))
+    assert fresh.stop is None
+    assert fresh.stop_bound_s == WINDOW_S
+
+
+def test_the_band_spans_every_pair_commanded_over_the_window_widened_by_the_tolerance(
+    fresh: SpeedExpectation,
+) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
+    fresh.commanded(0.5, SpeedPoint(60.0, 700.0))
+    fresh.commanded(1.0, SpeedPoint(80.0, 500.0))
+    assert fresh.band(1.0) == ((60.0 - TOL, 100.0 + TOL), (400.0 - TOL, 700.0 + TOL))
+
+
+def test_a_pair_commanded_again_at_the_same_instant_replaces_the_first(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(10.0, 100.0))
+    fresh.commanded(1.0, SpeedPoint(200.0, 900.0))
+    fresh.commanded(1.0, SpeedPoint(20.0, 150.0))  # a revised command in the same tick
+    assert fresh.band(1.0) == ((10.0 - TOL, 20.0 + TOL), (100.0 - TOL, 150.0 + TOL))
+
+
+def test_the_window_keeps_the_pair_in_force_at_its_start_and_forgets_older_ones(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 800.0))
+    fresh.commanded(1.0, SpeedPoint(50.0, 400.0))
+    fresh.commanded(2.5, SpeedPoint(50.0, 400.0))  # the window starts at 0.5 s: (100, 800) was in force then
+    assert fresh.band(2.5) == ((50.0 - TOL, 100.0 + TOL), (400.0 - TOL, 800.0 + TOL))
+    fresh.commanded(3.0, SpeedPoint(50.0, 400.0))  # the window starts at 1.0 s, when (50, 400) took over
+    assert fresh.band(3.0) == ((50.0 - TOL, 50.0 + TOL), (400.0 - TOL, 400.0 + TOL))
+
+
+# -- the band during a stop: the controller's own stop plan, read one lag window late ---------------------
+
+
+def test_the_stop_ceiling_holds_for_a_window_follows_the_plan_then_is_standstill(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
+    stop = fresh.begin_stop(1.0, None)
+    assert stop.start == SpeedPoint(100.0, 400.0)
+    assert fresh.stop_bound_s == pytest.approx(stop.duration_s + WINDOW_S)
+    assert fresh.stop_end_s == pytest.approx(1.0 + stop.duration_s + WINDOW_S)
+    assert fresh.band(1.0 + WINDOW_S) == ((-TOL, 100.0 + TOL), (-TOL, 400.0 + TOL))  # late by the window
+    halfway = stop.at(stop.duration_s / 2.0)
+    (_, r_high), (_, v_high) = fresh.band(1.0 + WINDOW_S + stop.duration_s / 2.0)
+    assert (r_high - TOL, v_high - TOL) == pytest.approx((halfway.omega_r_rpm, halfway.omega_v_rpm))
+    assert fresh.band(fresh.stop_end_s) == ((-TOL, TOL), (-TOL, TOL))
+
+
+def test_a_stop_under_way_is_kept_when_another_begins(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
+    first = fresh.begin_stop(1.0, None)
+    fresh.commanded(1.5, SpeedPoint(0.0, 0.0))
+    assert fresh.begin_stop(1.5, (150.0, 600.0)) is first
+    assert fresh.stop_end_s == pytest.approx(1.0 + first.duration_s + WINDOW_S)
+
+
+def test_after_the_stop_the_band_is_what_was_commanded_again(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
+    fresh.begin_stop(1.0, None)
+    fresh.end_stop()
+    assert fresh.stop is None
+    assert fresh.band(1.0) == ((100.0 - TOL, 100.0 + TOL), (400.0 - TOL, 400.0 + TOL))
+
+
+# -- the judgement: above the band for the debounce count; at rest through a window though told to turn -----
+
+
+def hold(expect: SpeedExpectation, point: SpeedPoint, until_s: float, dt_s: float = 0.1) -> None:
+    """Command ``point`` every ``dt_s`` from 0 to ``until_s`` (as the controller's loop does)."""
+    for i in range(round(until_s / dt_s) + 1):
+        expect.commanded(i * dt_s, point)
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_a_drive_above_the_band_is_judged_at_the_debounce_count_and_its_edge_is_inside(
+    fresh: SpeedExpectation, axis: int
+) -> None:
+    commanded = (100.0, 400.0)
+    hold(fresh, SpeedPoint(*commanded), 1.0)
+    edge = list(commanded)
+    edge[axis] += TOL  # exactly the tolerance above: inside
+    over = list(commanded)
+    over[axis] += TOL + 0.1
+    for _ in range(2 * DEBOUNCE):
+        assert fresh.check(1.0, *edge) is None
+    for _ in range(DEBOUNCE - 1):
+        assert fresh.check(1.0, *over) is None
+    assert fresh.check(1.0, *commanded) is None  # one sample inside: the count starts again
+    for _ in range(DEBOUNCE - 1):
+        assert fresh.check(1.0, *over) is None
+    reason = fresh.check(1.0, *over)
+    assert reason is not None
+    assert "is not what was commanded" in reason and f"above it for {DEBOUNCE} samples in a row" in reason
+    fresh.reset()
+    assert fresh.check(1.0, *over) is None  # the count forgotten
+
+
+def test_a_drive_above_the_stop_ceiling_is_judged_naming_the_ceiling(fresh: SpeedExpectation) -> None:
+    fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
+    fresh.begin_stop(0.0, None)
+    late = fresh.stop_end_s
+    for _ in range(DEBOUNCE - 1):
+        assert fresh.check(late, 2.0 * TOL, 0.0) is None
+    reason = fresh.check(late, 2.0 * TOL, 0.0)
+    assert reason is not None and "is not the stop ceiling" in reason
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+@pytest.mark.parametrize(
+    ("commanded_rpm", "judged"),
+    [
+        (10.0, False),  # below the at-rest threshold (5 tolerances): a drive this slow may read rest
+        (5.0 * TOL, False),  # on the threshold: not over it
+        (18.0, True),  # over it, though less than 5 tolerances above the band's low edge
+        (100.0, True),
+    ],
+)
+def test_a_drive_at_rest_though_commanded_to_turn_is_judged_after_a_whole_window(
+    fresh: SpeedExpectation, axis: int, commanded_rpm: float, judged: bool
+) -> None:
+    point = [100.0, 400.0]
+    point[axis] = commanded_rpm
+    hold(fresh, SpeedPoint(*point), 10.0)
+    reading = list(point)
+    reading[axis] = TOL  # at rest: on the tolerance counts as rest
+    start_s = 10.0 - WINDOW_S
+    assert fresh.check(start_s, *reading) is None
+    assert fresh.check(start_s + WINDOW_S / 2.0, *reading) is None
+    reason = fresh.check(10.0, *reading)
+    if not judged:
+        assert reason is None
+        return
+    assert reason is not None and "the node did not take its setpoints" in reason
+    assert f"below it for {WINDOW_S:.1f} s" in reason
+
+
+def test_a_drive_that_turns_again_restarts_the_at_rest_window(fresh: SpeedExpectation) -> None:
+    hold(fresh, SpeedPoint(100.0, 400.0), 10.0)
+    assert fresh.check(7.0, 0.0, 400.0) is None
+    assert fresh.check(8.0, 100.0, 400.0) is None  # turning: the window starts again
+    assert fresh.check(8.5, 0.0, 400.0) is None
+    assert fresh.check(10.0, 0.0, 400.0) is None  # 1.5 s at rest: less than the window
+    assert fresh.check(10.5, 0.0, 400.0) is not None
+    fresh.reset()
+    assert fresh.check(10.5, 0.0, 400.0) is None  # forgotten: a whole window again

@@ -96,3 +96,27 @@ def test_transitions_are_recorded_with_reason_and_time() -> None:
         (S.ARMED, "operator armed", 1.5),
     ]
     assert sm.go(S.ARMED, "again") is None
+
+
+def test_an_illegal_move_lists_every_move_allowed_from_there() -> None:
+    sm = machine_after((S.DISABLED,))
+    with pytest.raises(
+        IllegalTransition, match=r"\(operator stop\); allowed from DISABLED: ARMED, DISCONNECTED, TRIPPED$"
+    ):
+        sm.go(S.STOPPING, "operator stop")
+    assert sm.state is S.DISABLED
+
+
+def test_the_history_records_each_move_from_where_to_where_and_keeps_the_latest_256() -> None:
+    clock = ManualClock()
+    seen: list[Transition] = []
+    sm = StateMachine(clock.now, seen.append)
+    sm.go(S.DISABLED, "node seen")
+    for i in range(150):  # 300 moves: ARMED and back
+        clock.advance(1.0)
+        sm.go(S.ARMED, f"arm {i}")
+        sm.go(S.DISABLED, f"disarm {i}")
+    assert len(seen) == 301
+    assert sm.history == seen[-256:]
+    assert (sm.history[-1].source, sm.history[-1].target, sm.history[-1].reason) == (S.ARMED, S.DISABLED, "disarm 149")
+    assert (seen[0].source, seen[0].target) == (S.DISCONNECTED, S.DISABLED)

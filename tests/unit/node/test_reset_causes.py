@@ -15,7 +15,16 @@ import can
 
 from firmware_sim.node import _lowest
 from millctl.config import MillConfig
-from millctl.protocol import CommandCode, FaultCode, FaultFlag, NodeState, RefusalCode, Setpoints, SimFaultCode
+from millctl.protocol import (
+    CommandCode,
+    FaultCode,
+    FaultFlag,
+    NodeState,
+    NodeStatus,
+    RefusalCode,
+    Setpoints,
+    SimFaultCode,
+)
 
 from .conftest import Bench
 
@@ -160,3 +169,67 @@ def test_the_first_fault_of_several_latched_together_is_the_lowest_bit() -> None
     lowest = min(FaultFlag.WATCHDOG, FaultFlag.E2E_LINK, key=int)
     assert _lowest(both) is lowest
     assert _lowest(FaultFlag.ESTOP) is FaultFlag.ESTOP
+
+
+def test_causes_that_fire_in_the_same_tick_are_all_latched_and_each_is_checked_at_reset(
+    config: MillConfig, make_bench: Callable[..., Bench]
+) -> None:
+    """Four causes in one tick: the furnace over its over-temperature, the watchdog expired, the E2E link
+    faulted and the heater setpoint not refreshed. Each is latched and reported (none overwrites another), and
+    RESET still finds the ones that are present (docs/safety.md#mutation-testing: `_checks`)."""
+    small = config.model_copy(update={"furnace": config.furnace.model_copy(update={"heat_capacity_j_per_k": 50.0})})
+    bench = make_bench(small, fault_injection=True)
+    node = bench.node
+    bench.arm()
+    bench.setpoints(0.0, 0.0, furnace_c=100.0, heater=True)
+    bench.inject(SimFaultCode.HEATER_FAIL, 1.0)  # welded relay: full power whatever the node says
+    bench.step(bench.tick_s)
+    assert state(bench) is NodeState.ARMED and node.heater_on and node.fault_bits == 0
+    for _ in range(small.interlock.e2e_error_limit):
+        bench.ctl_bus.send(corrupt_setpoints(bench))
+    quiet_s = 2.0 * max(small.furnace.setpoint_refresh_s, small.timing.watchdog_timeout_s) + 60.0
+    bench.clock.advance(quiet_s)  # one tick after a long silence: every cause fires in it
+    node.tick()
+    together = FaultFlag.OVERTEMP | FaultFlag.WATCHDOG | FaultFlag.E2E_LINK | FaultFlag.HEATER_TIMEOUT
+    assert node.fault_bits & together == together, node.fault_bits
+    assert node.first_fault is FaultCode.of(_lowest(node.fault_bits))
+    bench.collect()
+    assert bench.latest(NodeStatus).fault_bits & together == together
+    bench.step(0.1)  # heartbeats again; the link is still faulted, the furnace still over temperature
+    bench.command(CommandCode.RESET)
+    bench.step(bench.tick_s)
+    assert state(bench) is NodeState.FAULT
+    assert node.last_refusal is RefusalCode.FAULT_LATCHED
+
+
+def test_a_drive_whose_sensor_reads_rest_is_not_at_rest_while_its_model_still_turns(
+    config: MillConfig, make_bench: Callable[..., Bench]
+) -> None:
+    """A dead speed sensor (stuck at 0) on a drive turning below the stall check's threshold: the node's
+    reference model says the drive still turns after zero setpoints, so the node stays RUNNING, is not at
+    standstill and refuses DISARM until the model is at rest too (docs/safety.md#mutation-testing: `_at_rest`)."""
+    tolerance_rpm = config.interlock.measurement_tolerance_rpm
+    for turning in ((10.0, 0.0), (0.0, 10.0)):  # each drive alone, below STALL_MIN_TOLERANCES × tolerance
+        bench = make_bench(fault_injection=True)
+        node = bench.node
+        bench.step(bench.tick_s)
+        bench.inject(SimFaultCode.SENSOR_STUCK)  # at standstill: both sensors read 0 from now on
+        bench.arm()
+        bench.setpoints(*turning)
+        bench.step(1.5)
+        assert state(bench) is NodeState.RUNNING and node.fault_bits == 0, turning
+        assert node.measured_speeds_rpm == (0.0, 0.0)
+        bench.setpoints(0.0, 0.0)
+        bench.step(bench.tick_s)
+        assert max(node.true_speeds_rpm) > tolerance_rpm, turning
+        assert not node.at_standstill, turning
+        assert state(bench) is NodeState.RUNNING, turning
+        bench.command(CommandCode.DISARM)
+        bench.step(bench.tick_s)
+        assert state(bench) is NodeState.RUNNING, turning
+        assert node.last_refusal in (RefusalCode.WRONG_STATE, RefusalCode.NOT_STANDSTILL), turning
+        bench.step(2.0)
+        assert state(bench) is NodeState.ARMED and node.at_standstill, turning
+        bench.command(CommandCode.DISARM)
+        bench.step(bench.tick_s)
+        assert state(bench) is NodeState.DISABLED, turning
