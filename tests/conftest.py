@@ -1,11 +1,18 @@
 """Fixtures shared by every tier, the CI tiers' plugin, and the Hypothesis profiles.
 
 Hypothesis runs the ``ci`` profile unless told otherwise: derandomized (the
-examples are a fixed function of each test, so a run can be repeated) and
-without an example database (nothing carried over from an earlier run). The
-random search is the opt-in ``fuzz`` job (``.ci/fuzz``): ``--hypothesis-profile
-fuzz -m fuzz``, many more examples, fresh randomness, and the failures it finds
-kept in ``.hypothesis/fuzz`` and replayed first the next time.
+examples are a fixed function of each test, so a run can be repeated), after
+replaying the **stored examples** read-only: ``tests/examples/hypothesis``, the
+committed example database of what the random search found
+(tests/support/examples.py), besides the hand-picked hard cases written as
+``@example`` decorators and explicit API cases in the tests themselves.
+
+The random search is the opt-in, longer ``fuzz`` job (``bash .ci/fuzz``:
+``--hypothesis-profile fuzz -m ''``): many more examples and fresh randomness.
+The minimal failing example of each bug it finds is written to
+``tests/examples/hypothesis``; commit it with the fix, and every CI run replays
+it. The fuzz job does not replay the stored examples itself (CI does), so it
+never deletes one that passes again.
 """
 
 from __future__ import annotations
@@ -15,11 +22,10 @@ from collections.abc import Generator
 from pathlib import Path
 
 import pytest
-from hypothesis import settings
-from hypothesis.database import DirectoryBasedExampleDatabase
+from hypothesis import Phase, settings
 
 from millctl.config import MillConfig, load_config
-from tests.support import mutation_tests
+from tests.support import examples, mutation_tests
 from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
@@ -78,12 +84,16 @@ def pytest_collection(session: pytest.Session) -> Generator[None, object, object
         gc.enable()
 
 
-settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+# Hypothesis refuses derandomize=True and a database in one settings(...) call ("derandomize=True implies
+# database=None"), yet replays whatever database a settings object carries: the stored examples are added
+# to a derandomized parent (tests/unit/support/test_stored_examples.py shows them replayed).
+settings.register_profile("ci", settings(derandomize=True, print_blob=True), database=examples.replayed())
 settings.register_profile(
     "fuzz",
     derandomize=False,
     max_examples=1000,
-    database=DirectoryBasedExampleDatabase(REPO / ".hypothesis" / "fuzz"),
+    database=examples.NewFailures(examples.stored()),
+    phases=[phase for phase in Phase if phase is not Phase.reuse],
     print_blob=True,
 )
 settings.load_profile("ci")

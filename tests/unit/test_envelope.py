@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from millctl.config import LimitLaw, MillConfig
@@ -78,6 +78,12 @@ def test_rates(envelope: Envelope) -> None:
     st.floats(-10.0, 500.0, allow_nan=False),
     st.floats(0.0, 1500.0, allow_nan=False),
 )
+# the hard cases, every run: standstill, −0, the drives' limits, and a law that allows only standstill there
+@example(LimitLaw.PAPER_EQ9, 0.0, 0.0)
+@example(LimitLaw.PAPER_EQ9, -0.0, 800.0)
+@example(LimitLaw.PAPER_EQ9, 400.0, 1200.0)
+@example(LimitLaw.PAPER_EQ9, 0.1, 1200.0)
+@example(LimitLaw.CORRECTED_EVERY_PHASE, 1.0, 1100.0)
 def test_scalar_check_agrees_with_vectorised_limits(config: MillConfig, law: LimitLaw, w_r: float, w_v: float) -> None:
     env = Envelope.from_config(config, law=law)
     inside = env.check(w_r, w_v).ok

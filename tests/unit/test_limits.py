@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from millctl.config import G_M_S2, LimitLaw, MillConfig
@@ -100,6 +100,8 @@ def test_numerator_near_zero_keeps_its_digits() -> None:
 
 
 @given(st.floats(0.0, 200.0), st.floats(-1.0, 1.0))
+@example(0.0, -1.0)  # at rest, the phase's lower end
+@example((92.0 / 0.0886) ** 0.5, 1.0)  # the spring exactly balances m·ω_v²
 def test_eq8a_is_monotone_in_phase_when_stiff(w_v: float, s: float) -> None:
     p = LimitParams(rod_mass_kg=0.0886, r0_m=0.018, eccentricity_m=1e-3, spring_n_per_m=92.0)
     if p.spring_n_per_m > p.rod_mass_kg * w_v * w_v:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from millctl.config import LimitLaw, MillConfig
@@ -137,6 +137,9 @@ def test_linear_ramp_is_checked_on_the_wire_rounded_samples(planner: RampPlanner
     start=st.tuples(st.integers(0, 2500), st.integers(0, 12000)),
     end=st.tuples(st.integers(0, 2500), st.integers(0, 12000)),
 )
+@example(start=(1740, 6713), end=(1537, 3820))  # issue 15 item 8: its line rounds outside on the wire
+@example(start=(0, 0), end=(0, 0))  # a move of no length
+@example(start=(0, 12000), end=(2500, 0))  # corner to corner, both axes at once
 def test_rounded_samples_hold_every_pair_a_sampled_line_can_send(start: tuple[int, int], end: tuple[int, int]) -> None:
     """The crossing enumeration contains every rounded pair that dense sampling of the line finds."""
     a, b = (start[0] / 10.0, start[1] / 10.0), (end[0] / 10.0, end[1] / 10.0)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from millctl.safety.slew import SlewBudget
@@ -30,6 +30,9 @@ def _walk(budget: SlewBudget, frames: list[tuple[float, float]]) -> list[tuple[f
         max_size=60,
     )
 )
+@example([(0.0, 20.0)] * 10)  # many frames at one instant: the burst, once
+@example([(0.0, 20.0), (0.0, -20.0), (0.0, 20.0)])  # to and fro at one instant
+@example([(0.5, 20.0)] * 60)  # a steady sender at the budget's pace
 def test_accepted_steps_move_at_most_the_rate_over_any_window_plus_the_burst(frames: list[tuple[float, float]]) -> None:
     path = _walk(SlewBudget(RATE, BURST), frames)
     for i, (t1, x1) in enumerate(path):

@@ -2,6 +2,9 @@
 
 The app runs in-process (ASGI) on a real runtime with the embedded simulated
 node; only the endless event stream is left out (it is tested over the socket).
+CI replays the same few generated cases every run (the ``ci`` profile derandomizes),
+the stored cases below (requests that once gave a 500), and the stored examples of
+tests/examples/hypothesis; the random search is the fuzz job (``.ci/fuzz``).
 """
 
 from __future__ import annotations
@@ -13,7 +16,8 @@ from typing import Any
 
 import pytest
 import schemathesis
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from schemathesis.checks import not_a_server_error
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
@@ -23,8 +27,11 @@ from schemathesis.specs.openapi.checks import (
 
 from millctl.config import load_config
 from millctl.service import ServiceRuntime, create_app
+from tests.support import examples
 from tests.support.service import write_config
 
+REPO = Path(__file__).resolve().parents[3]
+DEMO_RECIPE = (REPO / "config" / "recipes" / "demo.toml").read_text()
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 
 
@@ -43,7 +50,7 @@ def runtime(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceRuntime
 
 
 @pytest.fixture(scope="module")
-def api_schema(runtime: ServiceRuntime) -> object:
+def api_schema(runtime: ServiceRuntime) -> schemathesis.BaseSchema:
     return schemathesis.openapi.from_asgi("/openapi.json", create_app(runtime))
 
 
@@ -66,19 +73,27 @@ def check_case(case: Case, lease_id: str) -> None:
 
 
 @schema.parametrize()
-@settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=8, deadline=None, database=None, suppress_health_check=list(HealthCheck))
 def test_every_response_is_documented_and_none_is_a_server_error(case: Case, lease_id: str) -> None:
-    """CI: the same few examples every run (the ``ci`` profile derandomizes; tests/conftest.py)."""
+    """CI: the same few examples every run (the ``ci`` profile derandomizes; tests/conftest.py).
+
+    Without the stored database: schemathesis passes derandomize and the database in one call, which
+    Hypothesis refuses. The API's stored cases are explicit (``STORED_CASES``).
+    """
     check_case(case, lease_id)
 
 
 @pytest.mark.fuzz
 @schema.parametrize()
-@settings(deadline=None, suppress_health_check=list(HealthCheck))
+@settings(deadline=None, database=None, suppress_health_check=list(HealthCheck))
 def test_random_search_every_response_is_documented_and_none_is_a_server_error(
     case: Case, lease_id: str
 ) -> None:
-    """The random search, in the opt-in fuzz job (``.ci/fuzz``): as many examples as the profile gives."""
+    """The random search, in the opt-in fuzz job (``.ci/fuzz``): as many examples as the profile gives.
+
+    What it finds goes into ``STORED_CASES`` (schemathesis reports the request), not the example
+    database: CI does not run this test, so nothing would replay an entry kept under its key.
+    """
     check_case(case, lease_id)
 
 
@@ -95,3 +110,83 @@ def test_every_route_is_versioned_and_documents_its_errors(tmp_path: Path) -> No
             assert "422" in operation["responses"], (method, path)
             if method == "post" and path not in ("/v1/envelope/check", "/v1/recipe/check"):  # read-only checks
                 assert {"409", "423", "503"} <= set(operation["responses"]), (method, path)
+
+
+# --- stored cases: requests that once gave a 500 -------------------------------------------------------------------
+
+NUL_RECIPE_NAME = "a\x00b.toml"
+"""A recipe's name (the client's file name) with a NUL byte: the service once opened it as a path (a 500,
+"embedded null byte"). A stored example of the property test below (tests/examples/hypothesis)."""
+
+STORED_CASES: dict[str, tuple[str, str, dict[str, Any]]] = {
+    # id: (method, path, the case's parts): each once reached the service unrefused
+    "recipe-run-nul-name": ("POST", "/v1/recipe/run", {"body": {"name": NUL_RECIPE_NAME, "text": DEMO_RECIPE}}),
+    "recipe-run-nul-text": ("POST", "/v1/recipe/run", {"body": {"name": "r.toml", "text": "a = \x00"}}),
+    "recipe-check-nul-name": ("POST", "/v1/recipe/check", {"body": {"name": NUL_RECIPE_NAME, "text": DEMO_RECIPE}}),
+    "resume-nul-run-id": (
+        "POST",
+        "/v1/recipe/unfinished/{run_id}/resume",
+        {"path_parameters": {"run_id": "2026\x00"}, "body": {"confirm": False}},
+    ),
+}
+
+
+@pytest.mark.parametrize("stored", STORED_CASES, ids=str)
+def test_a_stored_case_gets_a_documented_4xx_and_no_server_error(
+    api_schema: schemathesis.BaseSchema, lease_id: str, stored: str
+) -> None:
+    """Explicit cases: replayed every run, whatever the random search draws (they survive an edit of the test)."""
+    method, path, parts = STORED_CASES[stored]
+    case = api_schema[path][method].Case(**parts)
+    response = case.call(headers={"X-Millctl-Lease": lease_id})
+    case.validate_response(response, checks=CHECKS)
+    assert response.status_code == 422, (stored, response.status_code, response.text)
+
+
+def check_recipe_named(api_schema: schemathesis.BaseSchema, name: str) -> tuple[int, dict[str, Any]]:
+    """Pre-flight the demo recipe sent under ``name``: its status code and body (a documented response)."""
+    case = api_schema["/v1/recipe/check"]["POST"].Case(body={"name": name, "text": DEMO_RECIPE})
+    response = case.call()
+    case.validate_response(response, checks=CHECKS)
+    return response.status_code, response.json()
+
+
+@settings(max_examples=20, deadline=None)
+@given(name=st.text(max_size=300))
+def test_any_recipe_name_is_checked_or_refused_as_the_name_never_a_server_error(
+    api_schema: schemathesis.BaseSchema, name: str
+) -> None:
+    """A client names the recipe it sends (its file name): any text gets the recipe's check or a 422 for the name.
+
+    The name with a NUL byte that once gave a 500 is a stored example (tests/examples/hypothesis), replayed
+    before the generated names in every CI run (test_the_stored_nul_byte_name_is_replayed_every_run).
+    """
+    status, body = check_recipe_named(api_schema, name)
+    valid = 1 <= len(name) <= 255 and not any(ord(c) < 0x20 or ord(c) == 0x7F for c in name)
+    if valid:
+        assert status == 200 and body["source"] == name, (name, status, body)
+    else:
+        assert status == 422 and body["field"] == "body.name", (name, status, body)
+
+
+def test_the_stored_nul_byte_name_is_replayed_every_run(
+    api_schema: schemathesis.BaseSchema, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The ``ci`` profile replays the committed example database: the NUL-byte name is sent, though the
+    derandomized search alone would never draw that exact name."""
+    test = test_any_recipe_name_is_checked_or_refused_as_the_name_never_a_server_error
+    stored = examples.stored_choices(examples.inner_test(test))
+    assert (NUL_RECIPE_NAME,) in stored, f"the NUL-byte name is not stored in {examples.EXAMPLES_DIR}: {stored}"
+    if settings.get_current_profile_name() != "ci":
+        pytest.skip(f"the stored examples are replayed by the ci profile, not {settings.get_current_profile_name()!r}")
+    sent: list[str] = []
+    check = check_recipe_named
+
+    def spy(schema: schemathesis.BaseSchema, name: str) -> tuple[int, dict[str, Any]]:
+        sent.append(name)
+        return check(schema, name)
+
+    monkeypatch.setattr(f"{__name__}.check_recipe_named", spy)
+    test(api_schema)
+    assert sent[0] == NUL_RECIPE_NAME, sent[:3]  # replayed first, before anything generated
+    assert sent.count(NUL_RECIPE_NAME) == 1, sent
