@@ -105,10 +105,10 @@ def capture(window_s: float) -> dict[str, Any]:
         py = sys.executable
         logs = [(directory / "node.log").open("wb"), (directory / "service.log").open("wb")]
         procs = [
-            realtime.popen([py, "-m", "firmware_sim", "--config", str(cfg_path)], realtime=True, stderr=logs[0]),
+            realtime.popen([py, "-m", "firmware_sim", "--config", str(cfg_path)], realtime="node", stderr=logs[0]),
             realtime.popen(
                 [py, "-m", "millctl", "--config", str(cfg_path), "serve", "--socket", str(directory / "mill.sock")],
-                realtime=True,
+                realtime="controller",
                 stderr=logs[1],
             ),
         ]

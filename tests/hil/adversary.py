@@ -26,7 +26,7 @@ from can.interfaces.udp_multicast.utils import pack_message
 
 from millctl.config.models import Bus
 from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
-from tests.support.realtime import start_thread
+from tests.support.realtime import Role, start_thread
 
 CAN_BITRATE = 500_000
 """The mill bus's bit rate (config/millbus.dbc)."""
@@ -59,8 +59,8 @@ class Background:
     _halt: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
 
-    def start(self, body: Callable[[Background], None], *, realtime: bool = False) -> Background:
-        """Run ``body`` on a thread; ``realtime``: at the service's and node's policy (tests.support.realtime)."""
+    def start(self, body: Callable[[Background], None], *, realtime: Role | None = None) -> Background:
+        """Run ``body`` on a thread; ``realtime``: at that role's real-time policy (tests.support.realtime)."""
         self._thread = threading.Thread(target=body, args=(self,), name=f"adversary-{self.name}", daemon=True)
         start_thread(self._thread, realtime=realtime)
         return self
@@ -149,7 +149,7 @@ class Adversary:
         return t
 
     # -- background senders ------------------------------------------------------------------------------------
-    def _background(self, name: str, body: Callable[[Background], None], *, realtime: bool = False) -> Background:
+    def _background(self, name: str, body: Callable[[Background], None], *, realtime: Role | None = None) -> Background:
         sender = Background(name).start(body, realtime=realtime)
         self._running.append(sender)
         return sender
@@ -229,7 +229,7 @@ class Adversary:
                     sender.first_sent_t = sender.first_sent_t or t
                     sender.sent += 1
 
-        return self._background("second-sender", body, realtime=True)
+        return self._background("second-sender", body, realtime="node")  # a device on the bus, like the node
 
     def record(self, kind: type[MillMessage], count: int, timeout_s: float) -> list[can.Message]:
         """The next ``count`` frames of ``kind`` heard on the bus, as they were (for a replay)."""

@@ -34,6 +34,7 @@ import can
 import pytest
 
 from tests.support.pace import cpu_share, scale_for_a_test, stretched, time_scale
+from tests.support.realtime import Role
 from tests.support.realtime import describe as describe_realtime
 from tests.support.realtime import popen as realtime_popen
 
@@ -221,13 +222,13 @@ class Spawner:
         self._logs: dict[int, Path] = {}
 
     def __call__(
-        self, argv: list[str], *, env: dict[str, str] | None = None, realtime: bool = False
+        self, argv: list[str], *, env: dict[str, str] | None = None, realtime: Role | None = None
     ) -> subprocess.Popen[bytes]:
         """Start ``argv`` (``python`` as the first item means this interpreter) in the repo root.
 
         stdout and stderr go to one log file; ``env`` is added to this process's environment.
-        ``realtime``: at the real-time policy pytest was started with, if any (the service and
-        the node, whose timing the tests check: ``tests.support.realtime``).
+        ``realtime``: at that role's real-time policy, if pytest was started with one (the node,
+        and the controller service below it, whose timing the tests check: ``tests.support.realtime``).
         """
         if argv and argv[0] == "python":
             argv = [sys.executable, *argv[1:]]

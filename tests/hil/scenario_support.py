@@ -459,7 +459,7 @@ class Mill:
         """Start ``python -m firmware_sim --fault-injection`` on the transport."""
         assert self.separate, "on virtual the node runs inside the service"
         self.node = self.spawn(
-            ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"], realtime=True
+            ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"], realtime="node"
         )
         return self.node
 
@@ -467,7 +467,7 @@ class Mill:
         """Start ``millctl serve`` and wait for its socket."""
         self.service = self.spawn(
             ["python", "-m", "millctl", "--config", str(self.config_path), "serve", "--socket", str(self.socket_path)],
-            realtime=True,
+            realtime="controller",
         )
         service = self.service
         wait_for(

@@ -92,8 +92,8 @@ def test_sigkill_of_the_service_mid_run_the_node_stops_the_mill_and_records_surv
     transport: Transport, spawn: Spawner, tmp_path: Path
 ) -> None:
     config = write_config(tmp_path, transport)  # the scenarios' config: scaled inside the VM like theirs
-    node = spawn(["python", "-m", "firmware_sim", "--config", str(config)], realtime=True)
-    service = spawn(["python", "-m", "millctl", "--config", str(config), "serve"], realtime=True)
+    node = spawn(["python", "-m", "firmware_sim", "--config", str(config)], realtime="node")
+    service = spawn(["python", "-m", "millctl", "--config", str(config), "serve"], realtime="controller")
     watcher = Watcher(transport.open_bus())
     socket_path = tmp_path / "mill.sock"
     wait_for(socket_path.exists, transport.timeout(30.0), f"the service socket\n{spawn.output(service)}")

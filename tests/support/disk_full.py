@@ -143,6 +143,6 @@ def main(directory: Path) -> int:
 
 
 if __name__ == "__main__":
-    realtime.take_over()  # a real-time policy it was started with (if any) is kept for its service only
+    realtime.take_over()  # started at the node's real-time priority (if any): its service gets the controller's
     os.chdir(Path(__file__).resolve().parents[2])
     sys.exit(main(Path(sys.argv[1])))

@@ -106,7 +106,7 @@ def start_service(
     with log.open("wb") as out:
         proc = realtime_popen(  # at the real-time policy .ci/test gives the hil tiers, where it could
             [sys.executable, "-m", *argv],
-            realtime=True,
+            realtime="controller",
             cwd=REPO,
             stdin=subprocess.DEVNULL,
             stdout=out,

@@ -1,6 +1,6 @@
-"""The service the hil tests start runs at the policy pytest was started with; pytest itself at the normal one.
+"""The service the hil tests start runs at the controller's real-time policy; pytest itself at the normal one.
 
-Under ``.ci/test`` that is SCHED_RR (tests/support/realtime.py): every thread of
+Under ``.ci/test`` that is SCHED_RR 10, below the node's 20 (tests/support/realtime.py): every thread of
 the service, its control loop included, runs real-time, so a CPU hog on the
 machine cannot delay its heartbeats past the node's watchdog.
 """
@@ -24,8 +24,8 @@ def _thread_policies(pid: int) -> dict[str, tuple[int, int]]:
     return policies
 
 
-def test_every_thread_of_the_service_runs_at_the_policy_pytest_was_started_with() -> None:
-    kept = launcher_policy()
+def test_every_thread_of_the_service_runs_at_the_controllers_policy() -> None:
+    kept = launcher_policy("controller")
     expected = (kept.policy, kept.priority) if kept is not None else (os.SCHED_OTHER, 0)
     with private_dir() as directory:
         write_config(directory)

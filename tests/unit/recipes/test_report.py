@@ -20,14 +20,15 @@ from tests.unit.recipes.test_runner import DEMO, drive
 from tests.unit.scenarios.rig import Rig
 
 
-@pytest.fixture
-def demo_record(config: MillConfig, tmp_path: Path) -> Path:
+@pytest.fixture(scope="module")
+def demo_record(config: MillConfig, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One run of the demo recipe on the simulated node (~2 s of CPU), read by every test here, written by none."""
     rig = Rig(config)
     try:
         loaded = load_recipe(DEMO)
         plan = plan_recipe(loaded.recipe, rig.config)
-        runner = RecipeRunner(rig.controller, loaded, plan, rig.clock, records_dir=tmp_path, config_sha256="0" * 64,
-                              sample_s=0.5)
+        runner = RecipeRunner(rig.controller, loaded, plan, rig.clock, records_dir=tmp_path_factory.mktemp("demo"),
+                              config_sha256="0" * 64, sample_s=0.5)
         drive(rig, runner, 120.0)
         assert runner.state is RunState.DONE, runner.reason
         return runner.record.path

@@ -1,4 +1,4 @@
-"""tests.support.realtime: the service and node keep the real-time policy pytest was started with; pytest does not."""
+"""tests.support.realtime: the node keeps the real-time policy pytest was started with, the service runs below it."""
 
 from __future__ import annotations
 
@@ -16,22 +16,25 @@ import json, os, subprocess, sys, threading
 from tests.support import realtime
 kept = realtime.take_over()
 child = "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"
-def policy_of(realtime_child):
-    proc = realtime.popen([sys.executable, "-c", child], realtime=realtime_child, stdout=subprocess.PIPE)
+def policy_of(role):
+    proc = realtime.popen([sys.executable, "-c", child], realtime=role, stdout=subprocess.PIPE)
     out, _ = proc.communicate(timeout=30)
     return [int(x) for x in out.split()]
+def thread_policy():
+    return [os.sched_getscheduler(0), os.sched_getparam(0).sched_priority]
 seen = {}
-thread = threading.Thread(target=lambda: seen.update(thread=os.sched_getscheduler(0)))
+thread = threading.Thread(target=lambda: seen.update(thread=thread_policy()))
 thread.start(); thread.join()
-instrument = threading.Thread(target=lambda: seen.update(instrument=os.sched_getscheduler(0)))
-realtime.start_thread(instrument, realtime=True); instrument.join()
+instrument = threading.Thread(target=lambda: seen.update(instrument=thread_policy()))
+realtime.start_thread(instrument, realtime="node"); instrument.join()
 print(json.dumps({
     "kept": str(kept) if kept else None,
     "main": os.sched_getscheduler(0),
     "new_thread": seen["thread"],
     "realtime_thread": seen["instrument"],
-    "realtime_child": policy_of(True),
-    "normal_child": policy_of(False),
+    "node_child": policy_of("node"),
+    "controller_child": policy_of("controller"),
+    "normal_child": policy_of(None),
     "header": realtime.describe(),
 }))
 """
@@ -49,25 +52,35 @@ def _chrt_permitted() -> bool:
     return subprocess.run(["chrt", "--rr", "1", "true"], capture_output=True, check=False).returncode == 0
 
 
-def test_started_at_sched_rr_only_the_realtime_children_keep_it() -> None:
+def test_started_at_sched_rr_the_node_keeps_it_the_controller_runs_below_and_nothing_else_is_realtime() -> None:
     if not _chrt_permitted():  # no CAP_SYS_NICE here: the fallback is all there is to check
         test_started_at_the_normal_policy_everything_stays_normal()
         return
-    seen = _run(["chrt", "--rr", "7"])
-    assert seen["kept"] == "SCHED_RR priority 7"
+    seen = _run(["chrt", "--rr", "17"])
+    assert seen["kept"] == "SCHED_RR priority 17"
     assert seen["main"] == os.SCHED_OTHER, "pytest's own thread must go back to the normal policy"
-    assert seen["new_thread"] == os.SCHED_OTHER, "threads pytest starts afterwards must run at the normal policy"
-    assert seen["realtime_child"] == [os.SCHED_RR, 7]
-    assert seen["realtime_thread"] == os.SCHED_RR
+    assert seen["new_thread"] == [os.SCHED_OTHER, 0], "threads pytest starts afterwards must run at the normal policy"
+    assert seen["node_child"] == [os.SCHED_RR, 17]
+    assert seen["controller_child"] == [os.SCHED_RR, 7], "the controller runs NODE_ABOVE_CONTROLLER (10) below the node"
+    assert seen["realtime_thread"] == [os.SCHED_RR, 17]
     assert seen["normal_child"] == [os.SCHED_OTHER, 0]
-    assert "SCHED_RR priority 7 (real-time)" in str(seen["header"])
+    assert "node runs at SCHED_RR priority 17, the service at SCHED_RR priority 7" in str(seen["header"])
+
+
+def test_a_low_priority_start_still_leaves_the_controller_real_time_below_the_node() -> None:
+    if not _chrt_permitted():
+        return test_started_at_the_normal_policy_everything_stays_normal()
+    seen = _run(["chrt", "--rr", "3"])
+    assert seen["node_child"] == [os.SCHED_RR, 3]
+    assert seen["controller_child"] == [os.SCHED_RR, 1], "the lowest real-time priority, never the normal policy"
 
 
 def test_started_at_the_normal_policy_everything_stays_normal() -> None:
     seen = _run([])
     assert seen["kept"] is None
     assert seen["main"] == os.SCHED_OTHER
-    assert seen["realtime_child"] == [os.SCHED_OTHER, 0]
-    assert seen["realtime_thread"] == os.SCHED_OTHER
+    assert seen["node_child"] == [os.SCHED_OTHER, 0]
+    assert seen["controller_child"] == [os.SCHED_OTHER, 0]
+    assert seen["realtime_thread"] == [os.SCHED_OTHER, 0]
     assert seen["normal_child"] == [os.SCHED_OTHER, 0]
     assert "normal scheduling policy" in str(seen["header"])
