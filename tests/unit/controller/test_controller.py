@@ -173,6 +173,22 @@ def test_a_completed_reset_is_confirmed_once_and_not_sent_again(bench: ScriptedN
     assert bench.messages(Command).count(Command(CommandCode.RESET)) == 1
 
 
+def test_a_completed_reset_clears_the_trip_cause_and_is_never_reported_as_given_up(bench: ScriptedNode) -> None:
+    from millctl.controller.controller import RESET_TIMEOUT_S
+
+    armed(bench)
+    bench.controller.estop()
+    bench.run(0.2, state=NodeState.FAULT)
+    assert bench.controller.trip_cause
+    bench.controller.reset()
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+    assert bench.controller.trip_cause == ""  # the status shows no cause once the reset is done
+    bench.run(RESET_TIMEOUT_S + 0.5, state=NodeState.DISABLED)
+    refusals = [e.message for e in bench.events if e.kind is EventKind.REFUSAL]
+    assert not [m for m in refusals if "reset did not complete" in m], refusals
+
+
 def test_a_node_disabled_with_a_fault_still_latched_has_not_confirmed_the_reset(bench: ScriptedNode) -> None:
     from millctl.protocol import DriveTelemetry, FaultFlag, FurnaceTelemetry, NodeStatus
 

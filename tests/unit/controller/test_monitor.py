@@ -26,3 +26,14 @@ def test_an_invalid_measurement_trips_at_the_first_sample(
 def test_noise_around_standstill_within_the_tolerance_is_valid(config: MillConfig) -> None:
     monitor = MeasuredSpeedMonitor(Envelope.from_config(config), config.interlock.debounce_samples)
     assert monitor.update(-0.5, -1.0) is None
+
+
+def test_a_debounce_of_one_trips_at_the_first_sample_outside_and_none_is_refused(config: MillConfig) -> None:
+    envelope = Envelope.from_config(config)
+    with pytest.raises(ValueError, match=r"^debounce_samples = 0 must be ≥ 1$"):
+        MeasuredSpeedMonitor(envelope, 0)
+    monitor = MeasuredSpeedMonitor(envelope, 1)
+    assert monitor.debounce_samples == 1 and monitor.outside_in_a_row == 0
+    assert monitor.update(60.0, 300.0) is None
+    reason = monitor.update(390.0, 300.0)  # far over the rotary limit at 300 rpm of vibration
+    assert reason is not None and reason.startswith("measured speeds outside the envelope for 1 samples")

@@ -189,5 +189,19 @@ def test_the_health_of_each_stream_for_the_status_display(interlock: Interlock) 
     }
     assert health["NodeStatus"]["stale"] is False
     assert health["PhysicsTelemetry"]["e2e"] == {"ok": 1}  # not protected: every frame counts as ok
-    assert health["PhysicsTelemetry"]["e2e_score"] == 0 and health["PhysicsTelemetry"]["stale_after_s"] == 1.0
+    physics = health["PhysicsTelemetry"]
+    assert (physics["e2e_score"], physics["e2e_sequence_score"], physics["stale_after_s"]) == (0, 0, 1.0)
+    assert tracker.health(1.5)["NodeStatus"]["stale"] is False  # exactly its bound old: not yet stale
     assert tracker.health(1.31)["DriveTelemetry"]["stale"] is True
+
+
+def test_a_stream_exactly_its_bound_old_is_not_yet_stale(interlock: Interlock) -> None:
+    tracker = TelemetryTracker(CODEC, interlock)
+    tracker.connected(0.0)
+    tracker.accept(frame(NodeStatus, 0), 0.0)
+    tracker.accept(frame(DriveTelemetry, 0), 0.5)
+    assert tracker.stale(0.5) == []  # NodeStatus 0.5 s old, its bound; FurnaceTelemetry never received, 0.5 s
+    tracker.accept(frame(NodeStatus, 1), 0.5)
+    tracker.accept(frame(DriveTelemetry, 1), 1.0)
+    assert tracker.stale(1.0) == []  # FurnaceTelemetry never received, 1.0 s: its start-up bound
+    assert len(tracker.stale(1.0 + 1e-6)) == 2  # now NodeStatus and FurnaceTelemetry
