@@ -9,9 +9,11 @@ Only a *fresh* heartbeat feeds the watchdog (items 2 and 16): its E2E status
 is fresh (OK or OK_SOME_LOST: never a repeated, out-of-sequence or bad-CRC
 one) **and** its ``challenge_echo`` is a challenge this node issued within
 ``timing.challenge_lifetime_s`` and no older than the challenge the last
-fresh heartbeat echoed. Every NodeStatus carries a new random 16-bit
-challenge (:meth:`LinkMonitor.issue_challenge`); the controller echoes the
-latest one it received. A 4-bit counter cannot tell a replay, the challenge
+fresh heartbeat echoed. Every NodeStatus carries a new 16-bit challenge
+(:meth:`LinkMonitor.issue_challenge`); the controller echoes the latest one
+it received. The challenges run through all 65 536 values before any
+repeats (:class:`ChallengeSequence`), so an old echo can never match a
+newer challenge by chance. A 4-bit counter cannot tell a replay, the challenge
 can: a recorded heartbeat echoes a challenge that has since been superseded
 or has expired, so a recorded sequence replayed after the controller died
 feeds nothing, and the watchdog stops the mill (docs/protocol.md, "Heartbeat
@@ -28,6 +30,32 @@ from millctl.config.models import MillConfig
 from millctl.protocol import Command, Decoded, E2EReceiver, E2EStatus, Heartbeat, MillMessage, Setpoints
 
 log = logging.getLogger(__name__)
+
+CHALLENGE_VALUES = 1 << 16
+"""The heartbeat challenge is a 16-bit field (DBC signal ``NodeStatus.challenge``)."""
+
+
+class ChallengeSequence:
+    """The node's challenges: ``(start + k · step) mod 2¹⁶`` for the k-th NodeStatus, start and odd step drawn at boot.
+
+    An odd step is a generator of the integers mod 2¹⁶, so no value recurs within
+    65 536 challenges (54 min at 20 Hz): a heartbeat recorded earlier echoes a value
+    that no challenge issued since can equal. Drawing each challenge at random
+    instead lets a replayed echo equal a newer live challenge by chance, with
+    probability (live challenges)/65 536 per replayed frame; that is rare at the
+    host's 10 live challenges but not under the VM's scaled lifetime, where about
+    200 are live and a replay loop fed the watchdog for seconds. Start and step are
+    drawn at boot (``secrets``) so that a restarted node does not repeat an old run.
+    """
+
+    def __init__(self) -> None:
+        self.start = secrets.randbits(16)
+        self.step = secrets.randbits(16) | 1
+
+    def value(self, serial: int) -> int:
+        """The challenge issued as number ``serial`` (0, 1, …) since boot."""
+        return (self.start + serial * self.step) % CHALLENGE_VALUES
+
 
 GUARDED: tuple[type[MillMessage], ...] = (Command, Heartbeat, Setpoints)
 """The controller's E2E-protected messages the node checks."""
@@ -55,13 +83,14 @@ class LinkMonitor:
         self.lifetime_s = config.timing.challenge_lifetime_s
         self._challenges: deque[tuple[int, int, float]] = deque()
         """Live challenges, oldest first: (serial number, value, issued at s)."""
+        self._sequence = ChallengeSequence()
         self._issued = 0
         self._accepted = -1
         """Serial number of the challenge the last fresh heartbeat echoed (-1 before the first)."""
 
     def issue_challenge(self, now_s: float) -> int:
-        """A new random challenge for the NodeStatus about to be sent; live for ``challenge_lifetime_s``."""
-        value = secrets.randbits(16)
+        """The next challenge for the NodeStatus about to be sent; live for ``challenge_lifetime_s``."""
+        value = self._sequence.value(self._issued)
         self._challenges.append((self._issued, value, now_s))
         self._issued += 1
         while now_s - self._challenges[0][2] > self.lifetime_s:
@@ -119,4 +148,4 @@ class LinkMonitor:
             receiver.clear_scores()
 
 
-__all__ = ["GUARDED", "LinkMonitor"]
+__all__ = ["CHALLENGE_VALUES", "GUARDED", "ChallengeSequence", "LinkMonitor"]

@@ -6,7 +6,7 @@ a clock the test sets: each rule is shown at its bound, without a bus.
 
 from __future__ import annotations
 
-from firmware_sim.link import GUARDED, LinkMonitor
+from firmware_sim.link import CHALLENGE_VALUES, GUARDED, ChallengeSequence, LinkMonitor
 from millctl.config import MillConfig
 from millctl.protocol import Command, CommandCode, ControllerState, Decoded, E2EStatus, Heartbeat, Setpoints
 
@@ -100,11 +100,49 @@ def test_challenges_are_16_bit_and_only_the_live_ones_are_kept(config: MillConfi
     period_s = 0.05  # one NodeStatus a tick
     values = [link.issue_challenge(i * period_s) for i in range(400)]
     assert all(0 <= v < 65536 for v in values)
-    assert len(set(values)) > 350  # random, not a sequence with repeats
+    assert len(set(values)) == 400  # no value twice within 65 536 challenges
     kept = link._challenges  # what an hour of NodeStatus frames would otherwise pile up
     assert len(kept) == round(config.timing.challenge_lifetime_s / period_s) + 1
     assert [serial for serial, _, _ in kept] == list(range(400 - len(kept), 400))
     assert kept[-1][1] == values[-1]
+
+
+def test_the_challenge_sequence_runs_through_every_16_bit_value_before_any_repeats() -> None:
+    for sequence in (ChallengeSequence() for _ in range(3)):
+        assert sequence.step % 2 == 1
+        values = [sequence.value(k) for k in range(CHALLENGE_VALUES)]
+        assert sorted(values) == list(range(CHALLENGE_VALUES))
+        assert sequence.value(CHALLENGE_VALUES) == values[0]
+
+
+def test_a_restarted_node_draws_a_new_sequence() -> None:
+    runs = {tuple(ChallengeSequence().value(k) for k in range(4)) for _ in range(8)}
+    assert len(runs) > 1  # 2³¹ start/step pairs: eight boots all alike would be one chance in about 2²¹⁷
+
+
+def test_a_replayed_echo_never_matches_a_newer_challenge_even_with_hundreds_live(config: MillConfig) -> None:
+    """The vcan VM's failure: its scaled lifetime (10 s) keeps 200 challenges live, and a loop of 16 recorded
+    heartbeats kept the watchdog fed for 11 s, as a random 16-bit challenge now and then equalled a recorded echo.
+
+    Here a recording of 4000 heartbeats is replayed one per NodeStatus, 4000 times, after the controller
+    died: drawn at random, about 4000 × 200 / 65 536 ≈ 12 echoes would match a live challenge.
+    """
+    timing = config.timing.model_copy(update={"challenge_lifetime_s": 10.0, "watchdog_timeout_s": 5.0})
+    link = LinkMonitor(config.model_copy(update={"timing": timing}))
+    period_s = 0.05  # NodeStatus at 20 Hz: 200 challenges live at once
+    recording = 4000
+    recorded = []
+    for k in range(recording + 200):  # the controller echoes each challenge; the first 4000 heartbeats are recorded
+        challenge = link.issue_challenge(k * period_s)
+        assert link.echo_fresh(challenge, k * period_s)
+        recorded.append(challenge)
+    del recorded[recording:]  # the recording ages by 10 s, one lifetime, before the controller dies
+    accepted = []
+    for k, echo in enumerate(recorded, start=recording + 200):  # the node issues on; the replay echoes the recording
+        link.issue_challenge(k * period_s)
+        if link.echo_fresh(echo, k * period_s):
+            accepted.append(echo)
+    assert accepted == []
 
 
 def test_an_echo_of_no_challenge_in_play_is_not_fresh(config: MillConfig) -> None:
