@@ -67,3 +67,18 @@ def test_a_node_found_in_any_state_but_disabled_at_connect_trips_naming_that_sta
     cause = "node found in state ARMED at connect: expected DISABLED"
     assert bench.controller.trip_cause == cause
     assert [(e.source, e.message) for e in trips(bench)] == [("node", cause)]
+
+
+def test_after_a_disarm_the_controller_stays_armed_until_the_node_reports_disabled(bench: ScriptedNode) -> None:
+    """The controller shows DISABLED (safe to approach) only once the node is: a status the node sent before it
+    took the DISARM still says ARMED, and so does the controller."""
+    bench.run(0.2, state=NodeState.DISABLED)
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    before = len(bench.controller.machine.history)
+    bench.controller.disarm()
+    bench.run(0.1, state=NodeState.ARMED)
+    assert bench.controller.state is S.ARMED
+    assert len(bench.controller.machine.history) == before  # not DISABLED for a moment either
+    bench.run(0.1, state=NodeState.DISABLED)
+    assert [(t.source, t.target) for t in bench.controller.machine.history[before:]] == [(S.ARMED, S.DISABLED)]
