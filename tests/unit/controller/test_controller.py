@@ -267,6 +267,10 @@ def test_a_reset_with_nothing_to_send_that_the_node_never_completes_is_given_up_
     assert len(bench.messages(Command)) == commands_before  # nothing to send, so nothing to confirm
     given_up = [e for e in bench.events if e.kind is EventKind.REFUSAL and "reset did not complete within" in e.message]
     assert len(given_up) == 1, [e.message for e in bench.events]
+    assert given_up[0].source == "operator"  # recorded as the refusal of the operator's reset
+    assert given_up[0].message.endswith(  # what the node said last, for the operator to act on
+        "node DISABLED, last refusal NONE; clear the cause and retry"
+    )
     bench.run(0.5, state=NodeState.DISABLED)  # the node is back, DISABLED and clear: the reset was given up
     assert bench.controller.state is S.TRIPPED
 
