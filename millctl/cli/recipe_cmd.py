@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.cli.recipe_run_cmd import register_run
 from millctl.config import load_config
 from millctl.errors import ExitCode, InterlockError
-from millctl.recipes import RecipePlan, load_recipe, plan_recipe
+
+if TYPE_CHECKING:  # the planner loads numba and scipy: only the commands that plan import it
+    from millctl.recipes import RecipePlan
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -43,6 +45,8 @@ class PreflightRefused(InterlockError):
 
 def preflight(args: argparse.Namespace) -> tuple[Any, RecipePlan]:
     """Load the config and the recipe, and plan it; raise :class:`PreflightRefused` listing every violation."""
+    from millctl.recipes import load_recipe, plan_recipe
+
     config = load_config(args.config).config
     loaded = load_recipe(args.file)
     plan = plan_recipe(loaded.recipe, config)

@@ -34,6 +34,14 @@ energy when the flight is tiny).
 
 Cam: the single-acting circular cam of eqs 1–3 (lift r_d sin α). Scenes are given
 as rows of parameters (:data:`PARAMS`, :func:`scene_row`).
+
+One file, on purpose, though long: numba's cache (``cache=True``) is invalidated
+only when the file that defines a function changes, not when a function it calls
+from another file does ("Caching limitations" in numba's notes on caching). Split
+across modules, an edit to a callee would leave its callers' compiled code stale.
+:mod:`.legacy_kernel` does call these kernels from its own file: after editing this
+one, delete its cache (``find millctl -name 'legacy_kernel.*.nb[ci]' -delete``;
+a fresh clone, and CI, start without one).
 """
 
 from __future__ import annotations

@@ -14,6 +14,10 @@ Checks per step (the same order as :mod:`.legacy`, the first pair that passes wi
 for every rod with a detachment, its wall gap r0² − |p − c|² ≤ 0 once it has left
 (the exact circle, c the vial centre in the lab), then (x_i − x_j)² + (y_i − y_j)² ≤ (2 r_r)²
 for every other rod, once either of the two has left (eq. 14 with the corrected contact distance).
+
+Its compiled code includes the kernels it calls, but numba invalidates this module's
+cache only when this file changes: after an edit to :mod:`.kernels`, delete it
+(``find millctl -name 'legacy_kernel.*.nb[ci]' -delete``).
 """
 
 from __future__ import annotations

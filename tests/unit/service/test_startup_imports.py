@@ -1,9 +1,11 @@
 """What loads the compiled physics (numba, scipy), and when.
 
 The interlock and the controller are closed forms (docs/model.md, level (a)) and
-must not load it. The service does load it, at start, through the recipe planner:
-planning a recipe is a request under the caller's lease, and a first plan that had
-to import numba and scipy took longer than the 30 s lease in the VM tier (ci6,
+must not load it; nor must the command line before a command needs it (every
+``millctl`` process, and each one a test starts, would pay for importing them).
+The service does load it, at start, through the recipe planner: planning a recipe
+is a request under the caller's lease, and a first plan that had to import numba
+and scipy took longer than the 30 s lease in the VM tier (ci6,
 tests/hil/test_stop_race.py on socketcan), so the import is paid before any request.
 """
 
@@ -26,8 +28,9 @@ def _loaded_after(statement: str) -> list[str]:
     return list(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
-def test_the_interlock_and_the_controller_import_no_compiled_physics() -> None:
-    assert _loaded_after("import millctl.safety, millctl.controller") == []
+def test_the_interlock_the_controller_and_the_command_line_import_no_compiled_physics() -> None:
+    statement = "import millctl.safety, millctl.controller, millctl.cli\nmillctl.cli.build_parser()"
+    assert _loaded_after(statement) == []
 
 
 def test_the_service_loads_the_planners_physics_at_start() -> None:
