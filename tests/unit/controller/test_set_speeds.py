@@ -115,3 +115,42 @@ def test_a_refused_speed_part_leaves_the_furnace_untouched(bench: ScriptedNode) 
     with pytest.raises(InterlockRefused):
         bench.controller.set_speeds(250.0, 800.0, furnace_c=60.0)
     assert bench.controller.furnace_target_c is None and bench.controller.trajectory is None
+
+
+def test_a_move_set_late_in_a_run_starts_from_where_the_mill_is(bench: ScriptedNode) -> None:
+    """Each setpoint is the plan at the time since the move began, however long the controller ran before: the
+    first one sent is one setpoint period along the ramp, not part-way up it."""
+    armed(bench)
+    bench.run(2.0, state=NodeState.ARMED)  # the move begins 2.4 s after the controller started
+    move = bench.controller.set_speeds(20.0, 200.0)
+    began_s = bench.clock.now()
+    bench.run(0.3, follow=True)
+    snap = bench.controller.planner.snap
+    sent = [(t, d.message) for t, d in bench.of(Setpoints) if t >= began_s]
+    assert sent
+    for t, setpoint in sent:
+        planned = snap(move.at(t - began_s))
+        assert isinstance(setpoint, Setpoints)
+        assert (setpoint.rotary_rpm, setpoint.vibration_rpm) == (planned.omega_r_rpm, planned.omega_v_rpm)
+
+
+def test_drives_that_lag_a_ramp_down_within_the_window_are_not_a_trip(bench: ScriptedNode) -> None:
+    """The measured speeds may follow what was commanded up to one window late (interlock.command_confirm_s plus
+    the drives' settle time): drives half a second behind a ramp down, above what is commanded now, are what the
+    window is for."""
+    armed(bench)
+    up = bench.controller.set_speeds(20.0, 200.0)
+    bench.run(up.duration_s + 0.5, follow=True)
+    down = bench.controller.set_speeds(10.0, 100.0)
+    lag_s = 0.5
+    for i in range(round((down.duration_s + 1.0) / 0.01)):
+        now = bench.clock.now()
+        if i % 5 == 0:
+            last = [d.message for t, d in bench.of(Setpoints) if t <= now - lag_s][-1]
+            assert isinstance(last, Setpoints)
+            bench.alive(NodeState.RUNNING, last.rotary_rpm, last.vibration_rpm)
+        bench.controller.tick()
+        bench.collect()
+        bench.clock.advance(0.01)
+    assert bench.controller.state is ControllerState.RUNNING, bench.controller.trip_cause
+    assert bench.messages(Setpoints)[-1] == Setpoints(10.0, 100.0, 25.0, False)
