@@ -6,7 +6,7 @@ import pytest
 
 from millctl.config import MillConfig
 from millctl.controller import CommandRefused, ControllerState, EventKind
-from millctl.protocol import Command, CommandCode, Heartbeat, NodeState, Setpoints
+from millctl.protocol import Command, CommandCode, Heartbeat, NodeState, NodeStatus, Setpoints
 from millctl.safety import InterlockRefused
 from tests.unit.controller.bench import ScriptedNode
 
@@ -31,6 +31,17 @@ def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench: ScriptedNode) -> No
     bench.clock.advance(1.0)
     bench.collect()
     assert len(bench.of(Heartbeat)) == 20
+
+
+def test_each_heartbeat_echoes_the_challenge_of_the_latest_node_status(bench: ScriptedNode) -> None:
+    """The node feeds its watchdog only from a heartbeat echoing a challenge it issued lately (docs/protocol.md,
+    "Heartbeat freshness"): the controller echoes the newest NodeStatus's challenge, 0 before it heard one."""
+    bench.run(0.2)
+    assert {m.challenge_echo for m in bench.messages(Heartbeat)} == {0}
+    for challenge in (4242, 17, 65535):
+        bench.say(NodeStatus(NodeState.DISABLED, challenge=challenge))
+        bench.run(0.1)
+        assert bench.messages(Heartbeat)[-1].challenge_echo == challenge
 
 
 def test_connects_when_the_node_is_seen(bench: ScriptedNode) -> None:
@@ -256,6 +267,10 @@ def test_a_reset_with_nothing_to_send_that_the_node_never_completes_is_given_up_
     assert len(bench.messages(Command)) == commands_before  # nothing to send, so nothing to confirm
     given_up = [e for e in bench.events if e.kind is EventKind.REFUSAL and "reset did not complete within" in e.message]
     assert len(given_up) == 1, [e.message for e in bench.events]
+    assert given_up[0].source == "operator"  # recorded as the refusal of the operator's reset
+    assert given_up[0].message.endswith(  # what the node said last, for the operator to act on
+        "node DISABLED, last refusal NONE; clear the cause and retry"
+    )
     bench.run(0.5, state=NodeState.DISABLED)  # the node is back, DISABLED and clear: the reset was given up
     assert bench.controller.state is S.TRIPPED
 

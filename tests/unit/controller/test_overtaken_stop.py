@@ -8,6 +8,8 @@ every other RUNNING the controller did not command still trips
 
 from __future__ import annotations
 
+import re
+
 from millctl.config import MillConfig
 from millctl.controller import ControllerState, EventKind
 from millctl.protocol import Command, CommandCode, DriveTelemetry, NodeState, Setpoints
@@ -48,7 +50,14 @@ def test_running_on_the_setpoint_a_stop_overtook_is_no_forgery(bench: ScriptedNo
     bench.run(0.3, state=NodeState.ARMED)
     assert state(bench) is S.ARMED, bench.controller.trip_cause
     assert bench.controller.estops_sent == 0
-    assert any(e.kind is EventKind.COMMAND and "the stop holds" in e.message for e in bench.events)
+    held = [e for e in bench.events if e.kind is EventKind.COMMAND and "the stop holds" in e.message]
+    assert len(held) == 1 and held[0].source == "controller"  # the controller's own judgement, recorded once
+    assert re.fullmatch(
+        r"node RUNNING 0\.\d\d s after the STOP, on the setpoint sent before it \(the node takes frames in "
+        r"order and has not taken the STOP yet\): the stop holds, STOP pending "
+        r"\(docs/safety\.md#a-stop-overtaking-a-setpoint\)",
+        held[0].message,
+    )
 
 
 def test_a_status_from_before_the_stop_does_not_end_it(bench: ScriptedNode) -> None:
@@ -58,7 +67,11 @@ def test_a_status_from_before_the_stop_does_not_end_it(bench: ScriptedNode) -> N
     assert state(bench) is S.ARMED
     bench.run(0.05, state=NodeState.RUNNING, rotary_rpm=0.5, vibration_rpm=2.0)
     assert state(bench) is S.STOPPING  # the stop is not over: the node has not taken it
-    assert CommandCode.STOP in bench.controller.confirmations.pending
+    reopened = bench.controller.confirmations.pending[CommandCode.STOP]
+    assert (reopened.source, reopened.reason) == ("controller", "the node ran on a setpoint sent before the STOP")
+    stop_s = bench.controller.run_orders.stop_s  # no longer than one bound from the STOP's first send
+    assert reopened.deadline_s == stop_s + bench.controller.config.interlock.command_confirm_s
+    assert any("the stop is not complete" in t.reason for t in bench.controller.machine.history)
     bench.run(0.2, state=NodeState.RUNNING, rotary_rpm=0.5, vibration_rpm=2.0)
     assert stops_sent(bench) >= 2  # pending again: repeated until the node shows it took it
     bench.run(0.3, state=NodeState.ARMED)

@@ -120,6 +120,21 @@ def test_a_restarted_node_draws_a_new_sequence() -> None:
     assert len(runs) > 1  # 2³¹ start/step pairs: eight boots all alike would be one chance in about 2²¹⁷
 
 
+def test_each_boot_steps_its_challenges_by_its_own_odd_step() -> None:
+    """With one step for every boot, a later boot's sequence is an earlier one's shifted: once the later boot
+    reaches the first recorded value, a recording from the earlier boot replayed in order echoes each new
+    challenge as it is issued and feeds the watchdog. Each boot draws its own odd step, so the two fall
+    apart after one match."""
+    boots = [ChallengeSequence() for _ in range(8)]
+    steps = [(boot.value(1) - boot.value(0)) % CHALLENGE_VALUES for boot in boots]
+    assert all(step % 2 == 1 for step in steps)  # odd: a full cycle before any repeat
+    assert len(set(steps)) > 1  # 2¹⁵ odd steps: eight boots on one step would be one chance in 2¹⁰⁵
+    earlier, later = next((a, b) for a in boots for b in boots if a.step != b.step)
+    recording = [earlier.value(k) for k in range(16)]
+    shift = next(k for k in range(CHALLENGE_VALUES) if later.value(k) == recording[0])
+    assert [later.value(shift + k) for k in range(16)] != recording  # in step for one frame at most
+
+
 def test_a_replayed_echo_never_matches_a_newer_challenge_even_with_hundreds_live(config: MillConfig) -> None:
     """The vcan VM's failure: its scaled lifetime (10 s) keeps 200 challenges live, and a loop of 16 recorded
     heartbeats kept the watchdog fed for 11 s, as a random 16-bit challenge now and then equalled a recorded echo.

@@ -1,0 +1,117 @@
+"""Setting speeds (``Controller.set_speeds``): planned as asked, checked whole before any part applies, recorded.
+
+Issue 15 item 7 (a refused part leaves the other untouched) and SAFETY requirement 9 (every command and
+refusal recorded with who asked and what), shown on the controller alone against a scripted node.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from millctl.config import MillConfig
+from millctl.controller import ControllerState, Event, EventKind
+from millctl.protocol import Command, NodeState, Setpoints
+from millctl.safety import STANDSTILL, InterlockRefused, SpeedPoint
+from tests.unit.controller.bench import ScriptedNode
+
+WHO = "api:bob"
+
+
+def armed(bench: ScriptedNode) -> None:
+    bench.run(0.2, state=NodeState.DISABLED)
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    assert bench.controller.state is ControllerState.ARMED
+
+
+def last(events: list[Event], kind: EventKind) -> Event:
+    return [e for e in events if e.kind is kind][-1]
+
+
+def test_the_move_is_the_planned_corridor_from_the_commanded_point_at_the_rates_asked(bench: ScriptedNode) -> None:
+    armed(bench)
+    planner = bench.controller.planner
+    target = SpeedPoint(20.0, 200.0)
+    move = bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=10.0, vibration_rate_rpm_s=50.0)
+    assert move == planner.plan(STANDSTILL, target, 10.0, 50.0)  # by default the corridor, not the straight line
+    assert move != planner.plan_linear(STANDSTILL, target, 10.0, 50.0)
+    ramps = [segment.t1_s - segment.t0_s for segment in move.segments if segment.start != segment.end]
+    assert ramps == pytest.approx([200.0 / 50.0, 20.0 / 10.0])  # each drive at its own rate asked
+    assert bench.controller.trajectory is move
+    bench.run(1.0, follow=True)
+    sent = bench.messages(Setpoints)[-1]
+    assert 0.0 < sent.vibration_rpm < 200.0 and sent.rotary_rpm == 0.0  # under way, vibration first, from rest
+
+
+def test_a_linear_move_is_the_straight_line_at_the_rates_asked(bench: ScriptedNode) -> None:
+    armed(bench)
+    target = SpeedPoint(20.0, 200.0)
+    move = bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=10.0, vibration_rate_rpm_s=50.0, linear=True)
+    assert move == bench.controller.planner.plan_linear(STANDSTILL, target, 10.0, 50.0)
+    assert move.duration_s == pytest.approx(max(20.0 / 10.0, 200.0 / 50.0))
+
+
+def test_a_move_is_recorded_with_who_asked_where_to_and_how_long(bench: ScriptedNode) -> None:
+    armed(bench)
+    move = bench.controller.set_speeds(20.0, 200.0, source=WHO)
+    event = last(bench.events, EventKind.COMMAND)
+    assert event.source == WHO
+    assert event.data == {"rotary_rpm": 20.0, "vibration_rpm": 200.0, "duration_s": move.duration_s}
+    assert event.message == f"ramp to ω_r = 20.0 rpm, ω_v = 200.0 rpm over {move.duration_s:.1f} s"
+    bench.controller.set_speeds(20.0, 250.0)
+    assert last(bench.events, EventKind.COMMAND).source == "operator"  # the default source
+
+
+def test_a_refused_move_is_recorded_with_who_asked_and_what_and_changes_nothing(
+    bench: ScriptedNode, config: MillConfig
+) -> None:
+    armed(bench)
+    with pytest.raises(InterlockRefused) as refused:
+        bench.controller.set_speeds(250.0, 800.0, source=WHO)
+    event = last(bench.events, EventKind.REFUSAL)
+    assert event.source == WHO
+    assert event.message == str(refused.value)
+    assert event.data == {"rotary_rpm": 250.0, "vibration_rpm": 800.0}
+    assert bench.controller.trajectory is None and bench.controller.commanded == STANDSTILL
+    too_fast = config.drives.rotary.max_accel_rpm_s * 2
+    with pytest.raises(InterlockRefused):
+        bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=too_fast)
+    with pytest.raises(InterlockRefused):
+        bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=too_fast, linear=True)
+    assert bench.controller.trajectory is None
+
+
+def test_speeds_with_a_furnace_target_start_both_at_the_heating_rate_asked(bench: ScriptedNode) -> None:
+    armed(bench)
+    bench.controller.set_speeds(20.0, 200.0, furnace_c=60.0, heating_rate_c_per_min=6.0, source=WHO)
+    assert bench.controller.trajectory is not None
+    assert (bench.controller.furnace_target_c, bench.controller.heating_rate_c_per_min) == (60.0, 6.0)
+    furnace = last(bench.events, EventKind.COMMAND)
+    assert furnace.source == WHO and furnace.data == {"temp_c": 60.0}
+    bench.run(3.0, follow=True)
+    sent = bench.messages(Setpoints)[-1]
+    assert bench.controller.furnace_setpoint_c == pytest.approx(25.0 + 6.0 / 60.0 * 3.0)  # from 25 °C, 0.3 °C in 3 s
+    assert sent.heater_on and sent.furnace_c == pytest.approx(25.3, abs=0.15)  # on the wire's 0.1 °C grid
+
+
+def test_a_refused_furnace_part_leaves_the_speeds_untouched(bench: ScriptedNode, config: MillConfig) -> None:
+    """Issue 15 item 7: the furnace part is checked, whole, before the speeds are planned or applied."""
+    armed(bench)
+    too_fast = config.furnace.max_heating_rate_c_per_min + 5.0
+    sent_before = len(bench.of(Command))
+    with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused"):
+        bench.controller.set_speeds(20.0, 200.0, furnace_c=60.0, heating_rate_c_per_min=too_fast, source=WHO)
+    assert last(bench.events, EventKind.REFUSAL).source == WHO
+    with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused"):
+        bench.controller.set_speeds(20.0, 200.0, furnace_c=config.furnace.max_setpoint_c + 50.0)
+    assert bench.controller.trajectory is None and bench.controller.furnace_target_c is None
+    bench.run(0.5, follow=True)
+    assert {(s.rotary_rpm, s.vibration_rpm, s.heater_on) for s in bench.messages(Setpoints)} == {(0.0, 0.0, False)}
+    assert len(bench.of(Command)) == sent_before
+
+
+def test_a_refused_speed_part_leaves_the_furnace_untouched(bench: ScriptedNode) -> None:
+    armed(bench)
+    with pytest.raises(InterlockRefused):
+        bench.controller.set_speeds(250.0, 800.0, furnace_c=60.0)
+    assert bench.controller.furnace_target_c is None and bench.controller.trajectory is None
