@@ -99,7 +99,9 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         """Check the lease, run ``action(controller, source)`` under the lock, and answer with the state it led to.
 
         The node confirms a command a few ticks later (arm → ARMED), so the answer
-        waits, up to SETTLE_S, for a state in ``SETTLES_IN[settles]`` or a trip.
+        waits, up to SETTLE_S, for a state in ``SETTLES_IN[settles]`` or a trip; not
+        while the control loop is not running (stopped, failed, or never started, as in
+        a runtime a test steps itself): then nothing ticks, and the state is as it is.
         """
         holder = rt.leases.check(lease).holder
 
@@ -113,7 +115,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         duration = rt.call(run)
         wanted = SETTLES_IN.get(settles, frozenset()) | {S.TRIPPED}
         deadline = time.monotonic() + SETTLE_S
-        while settles and rt.controller.state not in wanted and time.monotonic() < deadline and not rt.stopping:
+        while (settles and rt.controller.state not in wanted and time.monotonic() < deadline and rt.running
+               and not rt.stopping):
             time.sleep(SETTLE_POLL_S)
         return CommandOut(message=what, state=rt.controller.state, duration_s=duration)
 

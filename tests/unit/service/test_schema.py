@@ -5,17 +5,30 @@ node; only the endless event stream is left out (it is tested over the socket).
 CI replays the same few generated cases every run (the ``ci`` profile derandomizes),
 the stored cases below (requests that once gave a 500), and the stored examples of
 tests/examples/hypothesis; the random search is the fuzz job (``.ci/fuzz``).
+
+Each operation is a test of its own, on a mill of its own: a fresh runtime with the
+embedded node, stepped rather than run. Its control loop is not started, so each
+request's command runs at once (``ServiceRuntime.call`` without a loop), and after each
+request the test ticks controller and node through ``MILL_S_PER_REQUEST`` of mill time
+on a manual clock. What a request meets (the mill's state, what an earlier request
+started) is a function of that operation's earlier requests only: not of how busy the
+machine is, nor of which operations ran before on the same test worker. (Once, all
+operations ran as one test on one runtime with its real 100 Hz loop: ~800 requests
+that took over 120 s on a loaded machine, so that pytest-timeout cut the test
+mid-example and Hypothesis reported FlakyStrategyDefinition.) The loop and its queue
+(503 ``busy``) are tested on their own (tests/unit/service/test_loop_commands.py).
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
 import schemathesis
+from fastapi import FastAPI
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from schemathesis.checks import not_a_server_error
@@ -25,7 +38,9 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
+from millctl.clock import ManualClock
 from millctl.config import load_config
+from millctl.controller import ControllerState
 from millctl.service import ServiceRuntime, create_app
 from tests.support import examples
 from tests.support.service import write_config
@@ -35,18 +50,68 @@ DEMO_RECIPE = (REPO / "config" / "recipes" / "demo.toml").read_text()
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 
 
+MILL_S_PER_REQUEST = 0.02
+"""Mill time the test steps the runtime through after each request (s): two ticks, about what a request took
+on the real loop, so that what one request starts (an arm, a ramp, a furnace target) goes on under the next."""
+NODE_SEEN_WITHIN_S = 1.0
+"""Mill time within which the controller hears the embedded node (s): its status is sent at 10 Hz."""
+
+
+OPERATIONS = (
+    "GET /v1/status",
+    "GET /v1/service",
+    "GET /v1/envelope",
+    "POST /v1/envelope/check",
+    "GET /v1/events",
+    "GET /v1/control",
+    "POST /v1/control/take",
+    "POST /v1/control/release",
+    "POST /v1/arm",
+    "POST /v1/disarm",
+    "POST /v1/stop",
+    "POST /v1/reset",
+    "POST /v1/estop",
+    "POST /v1/setpoints",
+    "POST /v1/furnace",
+    "GET /v1/recipe",
+    "POST /v1/recipe/run",
+    "GET /v1/recipe/unfinished",
+    "POST /v1/recipe/unfinished/{run_id}/resume",
+    "POST /v1/recipe/unfinished/{run_id}/abort",
+    "POST /v1/recipe/check",
+    "POST /v1/recipe/pause",
+    "POST /v1/recipe/resume",
+    "POST /v1/recipe/abort",
+)
+"""Every operation of the API but the endless event stream (``GET /v1/stream``, tested over the socket): one test
+each (test_the_fuzzed_operations_are_every_operation_but_the_stream keeps this list whole)."""
+
+
+def advance(runtime: ServiceRuntime, seconds: float) -> None:
+    """Tick controller, recipe runner and embedded node through ``seconds`` of mill time, as the loop would."""
+    clock = runtime.clock
+    assert isinstance(clock, ManualClock)
+    period_s = runtime.config.timing.controller_tick_s
+    for _ in range(round(seconds / period_s)):
+        runtime.tick()
+        clock.advance(period_s)
+
+
+def stepped_runtime(directory: Path) -> ServiceRuntime:
+    """A runtime with the embedded node on a manual clock, its loop not started, once it has heard the node."""
+    runtime = ServiceRuntime(load_config(write_config(directory)), clock=ManualClock())
+    advance(runtime, NODE_SEEN_WITHIN_S)
+    assert runtime.controller.state is ControllerState.DISABLED, runtime.controller.state
+    return runtime
+
+
 @pytest.fixture(scope="module")
 def runtime(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceRuntime]:
-    directory: Path = tmp_path_factory.mktemp("schema")
-    running = ServiceRuntime(load_config(write_config(directory)))
-    running.start()
+    stepped = stepped_runtime(tmp_path_factory.mktemp("schema"))
     try:
-        deadline = time.monotonic() + 10.0
-        while running.status()["state"] != "DISABLED" and time.monotonic() < deadline:
-            time.sleep(0.05)
-        yield running
+        yield stepped
     finally:
-        running.shutdown("test over", bound_s=2.0)
+        stepped.close()
 
 
 @pytest.fixture(scope="module")
@@ -60,41 +125,81 @@ def lease_id(runtime: ServiceRuntime) -> str:
     return runtime.leases.take("api:fuzz")[0].lease_id
 
 
-schema = schemathesis.pytest.from_fixture("api_schema").exclude(path="/v1/stream")
+@dataclass
+class Mill:
+    """A mill of one operation's own: its stepped runtime, the app serving it, and the lease the fuzzer holds."""
+
+    runtime: ServiceRuntime
+    app: FastAPI
+    lease_id: str
+
+
+@pytest.fixture
+def mill(tmp_path: Path) -> Iterator[Mill]:
+    runtime = stepped_runtime(tmp_path)
+    try:
+        yield Mill(runtime, create_app(runtime), runtime.leases.take("api:fuzz")[0].lease_id)
+    finally:
+        runtime.close()
+
+
+@pytest.fixture(params=OPERATIONS)
+def operation_schema(request: pytest.FixtureRequest, api_schema: schemathesis.BaseSchema, mill: Mill) -> Any:
+    """The schema of one operation (the parameter, "METHOD /path"), served by its own mill.
+
+    A schema of its own, not ``api_schema.include(...)``: schemathesis replaces a fixture's filters with the test's.
+    """
+    method, path = str(request.param).split(" ", 1)
+    method = method.lower()
+    raw = api_schema.raw_schema
+    one = schemathesis.openapi.from_dict({**raw, "paths": {path: {method: raw["paths"][path][method]}}})
+    one.app = mill.app
+    one.location = api_schema.location
+    return one
+
+
+schema = schemathesis.pytest.from_fixture("operation_schema")
 Case = schemathesis.Case[Any]
 """A generated request of any operation of the schema (schemathesis types its operation generically)."""
 
 
-def check_case(case: Case, lease_id: str) -> None:
+def check_case(case: Case, mill: Mill) -> None:
     # A valid lease, so that commands get past the lease check to the controller and its interlock
     # (but never to release: the fuzzer keeps control for the whole run).
-    headers = {} if case.path == "/v1/control/release" else {"X-Millctl-Lease": lease_id}
+    headers = {} if case.path == "/v1/control/release" else {"X-Millctl-Lease": mill.lease_id}
     case.call_and_validate(checks=CHECKS, headers=headers)
+    advance(mill.runtime, MILL_S_PER_REQUEST)
 
 
 @schema.parametrize()
 @settings(max_examples=8, deadline=None, database=None, suppress_health_check=list(HealthCheck))
-def test_every_response_is_documented_and_none_is_a_server_error(case: Case, lease_id: str) -> None:
+def test_every_response_is_documented_and_none_is_a_server_error(case: Case, mill: Mill) -> None:
     """CI: the same few examples every run (the ``ci`` profile derandomizes; tests/conftest.py).
 
     Without the stored database: schemathesis passes derandomize and the database in one call, which
     Hypothesis refuses. The API's stored cases are explicit (``STORED_CASES``).
     """
-    check_case(case, lease_id)
+    check_case(case, mill)
 
 
 @pytest.mark.fuzz
 @schema.parametrize()
 @settings(deadline=None, database=None, suppress_health_check=list(HealthCheck))
-def test_random_search_every_response_is_documented_and_none_is_a_server_error(
-    case: Case, lease_id: str
-) -> None:
+def test_random_search_every_response_is_documented_and_none_is_a_server_error(case: Case, mill: Mill) -> None:
     """The random search, in the opt-in fuzz job (``.ci/fuzz``): as many examples as the profile gives.
 
     What it finds goes into ``STORED_CASES`` (schemathesis reports the request), not the example
     database: CI does not run this test, so nothing would replay an entry kept under its key.
     """
-    check_case(case, lease_id)
+    check_case(case, mill)
+
+
+def test_the_fuzzed_operations_are_every_operation_but_the_stream(api_schema: schemathesis.BaseSchema) -> None:
+    paths = api_schema.raw_schema["paths"]
+    served = {f"{method.upper()} {path}" for path, methods in paths.items() for method in methods} - {"GET /v1/stream"}
+    missing = sorted(served - set(OPERATIONS))
+    assert not missing, f"add to OPERATIONS in {__file__}, so that they are fuzzed: {missing}"
+    assert sorted(OPERATIONS) == sorted(served)
 
 
 def test_every_route_is_versioned_and_documents_its_errors(tmp_path: Path) -> None:
