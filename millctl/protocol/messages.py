@@ -196,7 +196,7 @@ class NodeStatus:
     """Rolling count of refusals, modulo 256."""
     last_refusal: RefusalCode = RefusalCode.NONE
     challenge: int = 0
-    """A fresh random number (0 … 65535) the controller's heartbeat must echo (docs/protocol.md)."""
+    """A new number (0 … 65535) each frame, none repeated in 65 536; the heartbeat echoes it (docs/protocol.md)."""
     E2E: ClassVar[bool] = True
 
 
