@@ -10,7 +10,7 @@ import can
 
 from millctl.clock import ManualClock
 from millctl.config import MillConfig
-from millctl.controller import Controller, Event
+from millctl.controller import Controller, ControllerState, Event, EventKind
 from millctl.protocol import (
     AliveCounter,
     Decoded,
@@ -90,6 +90,17 @@ class ScriptedNode:
             self.controller.tick()
             self.collect()
             self.clock.advance(dt)
+
+    def armed(self, source: str = "operator") -> None:
+        """From a node just seen DISABLED to ARMED: ``source`` arms, the node reports ARMED."""
+        self.run(0.2, state=NodeState.DISABLED)
+        self.controller.arm(source)
+        self.run(0.2, state=NodeState.ARMED)
+        assert self.controller.state is ControllerState.ARMED
+
+    def last_event(self, kind: EventKind) -> Event:
+        """The controller's latest event of ``kind``."""
+        return [e for e in self.events if e.kind is kind][-1]
 
     def of(self, kind: type[MillMessage]) -> list[tuple[float, Decoded]]:
         return [(t, d) for t, d in self.sent if d.kind is kind]

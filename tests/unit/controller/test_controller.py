@@ -13,14 +13,6 @@ from tests.unit.controller.bench import ScriptedNode
 S = ControllerState
 
 
-def armed(bench: ScriptedNode) -> ScriptedNode:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
-    assert bench.controller.state is S.ARMED
-    return bench
-
-
 def test_heartbeat_20_hz_counter_advanced_by_the_loop(bench: ScriptedNode) -> None:
     bench.run(1.0)
     beats = bench.of(Heartbeat)
@@ -51,12 +43,12 @@ def test_connects_when_the_node_is_seen(bench: ScriptedNode) -> None:
 
 
 def test_arm_sends_command_and_follows_node(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     assert bench.messages(Command) == [Command(CommandCode.ARM)]
 
 
 def test_over_limit_setpoint_refused_and_nothing_sent(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     with pytest.raises(InterlockRefused, match=r"250\.0 rpm exceeds the limit 190\.0 rpm"):
         bench.controller.set_speeds(250.0, 800.0)
     bench.run(0.5, state=NodeState.ARMED)
@@ -67,7 +59,7 @@ def test_over_limit_setpoint_refused_and_nothing_sent(bench: ScriptedNode) -> No
 
 
 def test_setpoints_follow_the_planned_ramp_at_10_hz(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     move = bench.controller.set_speeds(180.0, 800.0)
     bench.run(move.duration_s + 0.5, follow=True)
     assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
@@ -87,7 +79,7 @@ def test_commands_refused_in_the_wrong_state(bench: ScriptedNode) -> None:
 
 
 def test_measured_outside_trips_after_debounce(bench: ScriptedNode, config: MillConfig) -> None:
-    armed(bench)
+    bench.armed()
     move = bench.controller.set_speeds(180.0, 800.0)
     bench.run(move.duration_s + 0.5, follow=True)
     n = config.interlock.debounce_samples
@@ -102,14 +94,14 @@ def test_measured_outside_trips_after_debounce(bench: ScriptedNode, config: Mill
 
 
 def test_a_single_outlier_does_not_trip(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.alive(NodeState.ARMED, rotary_rpm=260.0, vibration_rpm=800.0)
     bench.run(0.5, state=NodeState.ARMED)
     assert bench.controller.state is S.ARMED
 
 
 def test_stale_telemetry_trips_and_latches(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.run(2.0)  # the node falls silent
     assert bench.controller.state is S.TRIPPED
     assert "stale" in bench.controller.trip_cause
@@ -122,14 +114,14 @@ def test_stale_telemetry_trips_and_latches(bench: ScriptedNode) -> None:
 def test_node_fault_trips_with_its_cause(bench: ScriptedNode) -> None:
     from millctl.protocol import FaultCode, FaultFlag, NodeStatus
 
-    armed(bench)
+    bench.armed()
     bench.say(NodeStatus(NodeState.FAULT, FaultFlag.STALL, FaultCode.STALL))
     bench.run(0.05)
     assert bench.controller.state is S.TRIPPED and "STALL" in bench.controller.trip_cause
 
 
 def test_reset_needs_standstill_and_fresh_telemetry(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.run(2.0)
     assert bench.controller.state is S.TRIPPED
     bench.alive(NodeState.FAULT, rotary_rpm=50.0)
@@ -145,7 +137,7 @@ def test_reset_needs_standstill_and_fresh_telemetry(bench: ScriptedNode) -> None
 
 
 def test_node_restart_mid_run_trips(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.set_speeds(100.0, 400.0)
     bench.run(0.5, state=NodeState.RUNNING)
     bench.run(0.2, state=NodeState.DISABLED)  # a fresh node boots DISABLED
@@ -154,14 +146,14 @@ def test_node_restart_mid_run_trips(bench: ScriptedNode) -> None:
 
 
 def test_every_state_change_has_a_reason(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     changes = [e for e in bench.events if e.kind is EventKind.STATE]
     assert [e.data["target_state"] for e in changes] == ["DISABLED", "ARMED"]
     assert all(e.data["reason"] for e in changes)
 
 
 def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.controller.reset()  # the node has not reported FAULT yet: nothing to send so far
     bench.collect()
@@ -173,7 +165,7 @@ def test_reset_before_the_node_reports_its_fault_is_completed_when_it_does(bench
 
 
 def test_a_completed_reset_is_confirmed_once_and_not_sent_again(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
     bench.controller.reset()
@@ -187,7 +179,7 @@ def test_a_completed_reset_is_confirmed_once_and_not_sent_again(bench: ScriptedN
 def test_a_completed_reset_clears_the_trip_cause_and_is_never_reported_as_given_up(bench: ScriptedNode) -> None:
     from millctl.controller.controller import RESET_TIMEOUT_S
 
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
     assert bench.controller.trip_cause
@@ -203,7 +195,7 @@ def test_a_completed_reset_clears_the_trip_cause_and_is_never_reported_as_given_
 def test_a_node_disabled_with_a_fault_still_latched_has_not_confirmed_the_reset(bench: ScriptedNode) -> None:
     from millctl.protocol import DriveTelemetry, FaultFlag, FurnaceTelemetry, NodeStatus
 
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
     bench.controller.reset()
@@ -216,7 +208,7 @@ def test_a_node_disabled_with_a_fault_still_latched_has_not_confirmed_the_reset(
 
 
 def test_a_reset_the_node_never_completes_is_given_up_with_its_reason(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
     bench.controller.reset()
@@ -231,7 +223,7 @@ def test_a_reset_given_up_unconfirmed_is_over_and_recorded_once(bench: ScriptedN
     complete the given-up reset behind the operator's back (docs/safety.md#mutation-testing: `_lost`)."""
     from millctl.controller.controller import RESET_TIMEOUT_S
 
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     bench.run(0.2, state=NodeState.FAULT)
     bench.controller.reset()
@@ -258,7 +250,7 @@ def test_a_reset_with_nothing_to_send_that_the_node_never_completes_is_given_up_
     reset up; when its completing status never comes (the node falls silent), RESET_TIMEOUT_S does."""
     from millctl.controller.controller import RESET_TIMEOUT_S
 
-    armed(bench)
+    bench.armed()
     bench.run(0.2, state=NodeState.DISABLED)  # the node restarted: a trip
     assert bench.controller.state is S.TRIPPED
     commands_before = len(bench.messages(Command))

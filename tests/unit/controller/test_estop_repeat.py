@@ -7,13 +7,6 @@ from millctl.protocol import DriveTelemetry, EStop, EStopSource, FaultFlag, Furn
 from tests.unit.controller.bench import ScriptedNode
 
 
-def armed(bench: ScriptedNode) -> None:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
-    assert bench.controller.state is ControllerState.ARMED
-
-
 def report_estop(bench: ScriptedNode, seconds: float) -> None:
     """The node in FAULT with the E-stop's bit set, every 50 ms."""
     for _ in range(round(seconds / 0.05)):
@@ -24,7 +17,7 @@ def report_estop(bench: ScriptedNode, seconds: float) -> None:
 
 
 def test_an_operators_estop_is_repeated_until_the_node_reports_it(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.estop()
     assert bench.controller.state is ControllerState.TRIPPED
     bench.run(0.6, state=NodeState.FAULT)  # FAULT, but without the E-stop's bit: not yet acted on
@@ -40,7 +33,7 @@ def test_an_operators_estop_is_repeated_until_the_node_reports_it(bench: Scripte
 
 
 def test_the_controllers_own_estop_says_so_on_the_wire(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.estop("controller")
     bench.collect()
     assert bench.messages(EStop) == [EStop(EStopSource.CONTROLLER)]

@@ -19,9 +19,7 @@ def trips(bench: ScriptedNode) -> list[Event]:
 
 
 def test_each_state_the_node_reports_moves_the_controller_and_is_recorded_as_the_reason(bench: ScriptedNode) -> None:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
+    bench.armed()
     bench.controller.set_speeds(20.0, 100.0)
     bench.run(1.0, follow=True)
     bench.controller.stop()
@@ -41,9 +39,7 @@ def test_each_state_the_node_reports_moves_the_controller_and_is_recorded_as_the
 
 
 def test_a_node_fault_trips_naming_the_fault_and_every_bit_recorded_as_the_nodes(bench: ScriptedNode) -> None:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
+    bench.armed()
     bits = FaultFlag.OVERTEMP | FaultFlag.STALL
     bench.say(NodeStatus(NodeState.FAULT, bits, FaultCode.OVERTEMP))
     bench.run(0.02)
@@ -72,9 +68,7 @@ def test_a_node_found_in_any_state_but_disabled_at_connect_trips_naming_that_sta
 def test_after_a_disarm_the_controller_stays_armed_until_the_node_reports_disabled(bench: ScriptedNode) -> None:
     """The controller shows DISABLED (safe to approach) only once the node is: a status the node sent before it
     took the DISARM still says ARMED, and so does the controller."""
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
+    bench.armed()
     before = len(bench.controller.machine.history)
     bench.controller.disarm()
     bench.run(0.1, state=NodeState.ARMED)

@@ -25,9 +25,7 @@ def state(bench: ScriptedNode) -> ControllerState:
 
 def ordered_then_stopped(bench: ScriptedNode) -> None:
     """ARMED; a ramp whose first nonzero setpoint goes out while the node still reports ARMED; then STOP."""
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
+    bench.armed()
     bench.controller.set_speeds(100.0, 400.0)
     for _ in range(100):
         bench.run(0.01)
@@ -109,9 +107,7 @@ def test_without_an_order_to_run_an_armed_node_running_in_a_stop_is_a_forgery(be
 
 def test_a_running_node_ordered_again_is_not_excused(bench: ScriptedNode) -> None:
     """The node had answered the order (RUNNING seen before the STOP): a later ARMED → RUNNING is nobody's."""
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
+    bench.armed()
     bench.controller.set_speeds(20.0, 100.0)
     bench.run(1.0, follow=True)
     assert state(bench) is S.RUNNING

@@ -12,7 +12,7 @@ from collections.abc import Callable
 import pytest
 
 from millctl.config import MillConfig
-from millctl.controller import CommandRefused, Controller, ControllerState, Event, EventKind
+from millctl.controller import CommandRefused, Controller, ControllerState, EventKind
 from millctl.protocol import Command, CommandCode, NodeState
 from millctl.safety import InterlockRefused
 from tests.unit.controller.bench import ScriptedNode
@@ -21,35 +21,24 @@ S = ControllerState
 WHO = "api:alice"
 
 
-def armed(bench: ScriptedNode) -> None:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm(source=WHO)
-    bench.run(0.2, state=NodeState.ARMED)
-    assert bench.controller.state is S.ARMED
-
-
-def last(events: list[Event], kind: EventKind) -> Event:
-    return [e for e in events if e.kind is kind][-1]
-
-
 def test_arm_disarm_and_stop_are_recorded_with_their_source_and_sent(bench: ScriptedNode) -> None:
-    armed(bench)
-    assert last(bench.events, EventKind.COMMAND).source == WHO
+    bench.armed(WHO)
+    assert bench.last_event(EventKind.COMMAND).source == WHO
     bench.controller.disarm(source=WHO)
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED
-    event = last(bench.events, EventKind.COMMAND)
+    event = bench.last_event(EventKind.COMMAND)
     assert event.source == WHO and event.data["command"] == "DISARM"
     assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.DISARM)) == 1
 
 
 def test_furnace_commands_are_recorded_with_their_source(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed(WHO)
     bench.controller.set_furnace(60.0, source=WHO)
-    event = last(bench.events, EventKind.COMMAND)
+    event = bench.last_event(EventKind.COMMAND)
     assert event.source == WHO and event.data == {"temp_c": 60.0}
     bench.controller.set_furnace(None, source=WHO)
-    event = last(bench.events, EventKind.COMMAND)
+    event = bench.last_event(EventKind.COMMAND)
     assert event.source == WHO and "heater off" in event.message
     assert bench.controller.furnace_target_c is None
 
@@ -70,42 +59,42 @@ def test_a_command_refused_in_the_wrong_state_names_it_and_the_state_and_is_reco
     bench.run(0.2, state=NodeState.DISABLED)
     with pytest.raises(CommandRefused, match=f"^{what} is not possible in state DISABLED \\(possible in "):
         REFUSED_IN_DISABLED[what](bench.controller)
-    event = last(bench.events, EventKind.REFUSAL)
+    event = bench.last_event(EventKind.REFUSAL)
     assert event.source == WHO and event.message.startswith(f"{what} is not possible in state DISABLED")
     assert bench.of(Command) == []
 
 
 def test_arm_refused_when_armed_names_it(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed(WHO)
     with pytest.raises(CommandRefused, match=r"^arm is not possible in state ARMED"):
         bench.controller.arm(source=WHO)
 
 
 def test_disarm_after_a_finished_ramp_to_a_speed_is_refused_and_recorded(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed(WHO)
     move = bench.controller.set_speeds(0.0, 1.0)
     bench.run(move.duration_s + 0.1, state=NodeState.ARMED, vibration_rpm=1.0)
     assert bench.controller.state is S.ARMED
     assert bench.controller.trajectory is None  # the ramp is over, the speed is still commanded
     with pytest.raises(CommandRefused, match="disarm needs both setpoints at 0"):
         bench.controller.disarm(source=WHO)
-    assert last(bench.events, EventKind.REFUSAL).source == WHO
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
     assert [d.message for _, d in bench.of(Command)].count(Command(CommandCode.DISARM)) == 0
 
 
 def test_a_refused_furnace_target_or_heating_rate_is_recorded_and_names_the_limit(
     bench: ScriptedNode, config: MillConfig
 ) -> None:
-    armed(bench)
+    bench.armed(WHO)
     too_hot = config.furnace.max_setpoint_c + 50.0
     with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused by the interlock: "):
         bench.controller.set_furnace(too_hot, source=WHO)
-    event = last(bench.events, EventKind.REFUSAL)
+    event = bench.last_event(EventKind.REFUSAL)
     assert event.source == WHO and event.data == {"temp_c": too_hot}
     assert f"{config.furnace.max_setpoint_c:.1f}" in event.message
     assert bench.controller.furnace_target_c is None
     too_fast = config.furnace.max_heating_rate_c_per_min + 5.0
     with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused by the interlock: "):
         bench.controller.set_furnace(60.0, rate_c_per_min=too_fast, source=WHO)
-    assert last(bench.events, EventKind.REFUSAL).data == {"temp_c": 60.0}
+    assert bench.last_event(EventKind.REFUSAL).data == {"temp_c": 60.0}
     assert bench.controller.furnace_target_c is None

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from millctl.config import MillConfig
-from millctl.controller import ControllerState, Event, EventKind
+from millctl.controller import ControllerState, EventKind
 from millctl.protocol import Command, NodeState, Setpoints
 from millctl.safety import STANDSTILL, InterlockRefused, SpeedPoint
 from tests.unit.controller.bench import ScriptedNode
@@ -17,19 +17,8 @@ from tests.unit.controller.bench import ScriptedNode
 WHO = "api:bob"
 
 
-def armed(bench: ScriptedNode) -> None:
-    bench.run(0.2, state=NodeState.DISABLED)
-    bench.controller.arm()
-    bench.run(0.2, state=NodeState.ARMED)
-    assert bench.controller.state is ControllerState.ARMED
-
-
-def last(events: list[Event], kind: EventKind) -> Event:
-    return [e for e in events if e.kind is kind][-1]
-
-
 def test_the_move_is_the_planned_corridor_from_the_commanded_point_at_the_rates_asked(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     planner = bench.controller.planner
     target = SpeedPoint(20.0, 200.0)
     move = bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=10.0, vibration_rate_rpm_s=50.0)
@@ -44,7 +33,7 @@ def test_the_move_is_the_planned_corridor_from_the_commanded_point_at_the_rates_
 
 
 def test_a_linear_move_is_the_straight_line_at_the_rates_asked(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     target = SpeedPoint(20.0, 200.0)
     move = bench.controller.set_speeds(20.0, 200.0, rotary_rate_rpm_s=10.0, vibration_rate_rpm_s=50.0, linear=True)
     assert move == bench.controller.planner.plan_linear(STANDSTILL, target, 10.0, 50.0)
@@ -52,23 +41,23 @@ def test_a_linear_move_is_the_straight_line_at_the_rates_asked(bench: ScriptedNo
 
 
 def test_a_move_is_recorded_with_who_asked_where_to_and_how_long(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     move = bench.controller.set_speeds(20.0, 200.0, source=WHO)
-    event = last(bench.events, EventKind.COMMAND)
+    event = bench.last_event(EventKind.COMMAND)
     assert event.source == WHO
     assert event.data == {"rotary_rpm": 20.0, "vibration_rpm": 200.0, "duration_s": move.duration_s}
     assert event.message == f"ramp to ω_r = 20.0 rpm, ω_v = 200.0 rpm over {move.duration_s:.1f} s"
     bench.controller.set_speeds(20.0, 250.0)
-    assert last(bench.events, EventKind.COMMAND).source == "operator"  # the default source
+    assert bench.last_event(EventKind.COMMAND).source == "operator"  # the default source
 
 
 def test_a_refused_move_is_recorded_with_who_asked_and_what_and_changes_nothing(
     bench: ScriptedNode, config: MillConfig
 ) -> None:
-    armed(bench)
+    bench.armed()
     with pytest.raises(InterlockRefused) as refused:
         bench.controller.set_speeds(250.0, 800.0, source=WHO)
-    event = last(bench.events, EventKind.REFUSAL)
+    event = bench.last_event(EventKind.REFUSAL)
     assert event.source == WHO
     assert event.message == str(refused.value)
     assert event.data == {"rotary_rpm": 250.0, "vibration_rpm": 800.0}
@@ -82,11 +71,11 @@ def test_a_refused_move_is_recorded_with_who_asked_and_what_and_changes_nothing(
 
 
 def test_speeds_with_a_furnace_target_start_both_at_the_heating_rate_asked(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     bench.controller.set_speeds(20.0, 200.0, furnace_c=60.0, heating_rate_c_per_min=6.0, source=WHO)
     assert bench.controller.trajectory is not None
     assert (bench.controller.furnace_target_c, bench.controller.heating_rate_c_per_min) == (60.0, 6.0)
-    furnace = last(bench.events, EventKind.COMMAND)
+    furnace = bench.last_event(EventKind.COMMAND)
     assert furnace.source == WHO and furnace.data == {"temp_c": 60.0}
     bench.run(3.0, follow=True)
     sent = bench.messages(Setpoints)[-1]
@@ -96,12 +85,12 @@ def test_speeds_with_a_furnace_target_start_both_at_the_heating_rate_asked(bench
 
 def test_a_refused_furnace_part_leaves_the_speeds_untouched(bench: ScriptedNode, config: MillConfig) -> None:
     """Issue 15 item 7: the furnace part is checked, whole, before the speeds are planned or applied."""
-    armed(bench)
+    bench.armed()
     too_fast = config.furnace.max_heating_rate_c_per_min + 5.0
     sent_before = len(bench.of(Command))
     with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused"):
         bench.controller.set_speeds(20.0, 200.0, furnace_c=60.0, heating_rate_c_per_min=too_fast, source=WHO)
-    assert last(bench.events, EventKind.REFUSAL).source == WHO
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
     with pytest.raises(InterlockRefused, match=r"^furnace setpoint refused"):
         bench.controller.set_speeds(20.0, 200.0, furnace_c=config.furnace.max_setpoint_c + 50.0)
     assert bench.controller.trajectory is None and bench.controller.furnace_target_c is None
@@ -111,7 +100,7 @@ def test_a_refused_furnace_part_leaves_the_speeds_untouched(bench: ScriptedNode,
 
 
 def test_a_refused_speed_part_leaves_the_furnace_untouched(bench: ScriptedNode) -> None:
-    armed(bench)
+    bench.armed()
     with pytest.raises(InterlockRefused):
         bench.controller.set_speeds(250.0, 800.0, furnace_c=60.0)
     assert bench.controller.furnace_target_c is None and bench.controller.trajectory is None
@@ -120,7 +109,7 @@ def test_a_refused_speed_part_leaves_the_furnace_untouched(bench: ScriptedNode) 
 def test_a_move_set_late_in_a_run_starts_from_where_the_mill_is(bench: ScriptedNode) -> None:
     """Each setpoint is the plan at the time since the move began, however long the controller ran before: the
     first one sent is one setpoint period along the ramp, not part-way up it."""
-    armed(bench)
+    bench.armed()
     bench.run(2.0, state=NodeState.ARMED)  # the move begins 2.4 s after the controller started
     move = bench.controller.set_speeds(20.0, 200.0)
     began_s = bench.clock.now()
@@ -138,7 +127,7 @@ def test_drives_that_lag_a_ramp_down_within_the_window_are_not_a_trip(bench: Scr
     """The measured speeds may follow what was commanded up to one window late (interlock.command_confirm_s plus
     the drives' settle time): drives half a second behind a ramp down, above what is commanded now, are what the
     window is for."""
-    armed(bench)
+    bench.armed()
     up = bench.controller.set_speeds(20.0, 200.0)
     bench.run(up.duration_s + 0.5, follow=True)
     down = bench.controller.set_speeds(10.0, 100.0)
