@@ -72,6 +72,10 @@ LOW_RPM = (60.0, 300.0)
 """ω_r, ω_v (rpm) for scenarios that only need the mill turning."""
 BABBLE_HZ = 1000.0
 """Junk frames per second from the babbling node (udp_multicast: each process reads every one)."""
+LOSS_PHASE_FRAMES = 75
+"""DriveTelemetry frames per loss phase (1.5 s at its 50 Hz)."""
+OCCASIONAL_CORRUPTION = 0.01
+"""Probability that a frame leaves the node with one bit flipped, in the "occasional bad CRC" phase."""
 STALL_RPM = (160.0, 500.0)
 """Close enough to the limit (162.2 rpm at ω_v = 500) that a stalled cam takes the pair out within a second."""
 
@@ -394,29 +398,55 @@ def e2e_counts(mill: Mill, frame: str = "DriveTelemetry") -> dict[str, int]:
     return counts
 
 
+def frames_after(probe: Probe, after: float, where: Callable[[Seen], bool], count: int) -> list[Seen] | None:
+    """The frames matching ``where`` after ``after`` once there are at least ``count`` of them, else None."""
+    found = probe.frames(after, where)
+    return found if len(found) >= count else None
+
+
 def test_frame_loss_and_corruption_are_counted_and_the_mill_stays_safe(
     bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    # Each phase lasts a number of frames, not a time: the E2E scores count frames, and a phase stretched by
+    # the VM's time scale (x20: 1700 DriveTelemetry frames instead of 75) would give the rare run of bad frames
+    # that legitimately faults the link (the score's limit: docs/safety.md) the chance to happen.
     mill, probe = bus_mill, probe_of(bus_mill)
     mill.run_at(*LOW_RPM)
     t_begin = probe.now()
-    phase_s = mill.timeout(1.5)
 
     for probability in (0.01, 0.2):  # moderate loss: counted, tolerated (OK_SOME_LOST still feeds freshness)
         before = e2e_counts(mill)
-        probe.inject(SimFaultCode.TX_LOSS, probability)
-        time.sleep(phase_s)
-        after = e2e_counts(mill)
-        assert mill.status()["state"] == "RUNNING", mill.status()["trip_cause"]
+        t_loss = probe.inject(SimFaultCode.TX_LOSS, probability)
+        wait_for(
+            lambda t=t_loss: frames_after(probe, t, is_kind(DriveTelemetry), LOSS_PHASE_FRAMES),
+            mill.timeout(10.0),
+            f"{LOSS_PHASE_FRAMES} DriveTelemetry frames at a loss of {probability}",
+        )
         if probability >= 0.2:
-            assert after.get("ok-some-lost", 0) > before.get("ok-some-lost", 0)
+            wait_for(
+                lambda b=before: e2e_counts(mill).get("ok-some-lost", 0) > b.get("ok-some-lost", 0),
+                mill.timeout(5.0),
+                "the controller to count a frame after a lost one (ok-some-lost)",
+            )
+        assert mill.status()["state"] == "RUNNING", mill.status()["trip_cause"]
     probe.inject(SimFaultCode.TX_LOSS, active=False)
 
+    # Occasional bad CRCs (1 %), until the probe has seen one on DriveTelemetry: discarded and counted. (At 5 %
+    # for the VM's stretched phase, a vcan run met five bad FurnaceTelemetry frames close enough together to
+    # fault its link: the safe side, and the limit doing its job, but not "occasional".)
     before = e2e_counts(mill)
-    t_corrupt = probe.inject(SimFaultCode.TX_CORRUPT, 0.05)  # occasional bad CRCs: discarded and counted
-    time.sleep(phase_s)
-    assert e2e_counts(mill).get("wrong-crc", 0) > before.get("wrong-crc", 0)
-    assert probe.frames(t_corrupt, lambda s: s.crc_failed)
+    t_corrupt = probe.inject(SimFaultCode.TX_CORRUPT, OCCASIONAL_CORRUPTION)
+    wait_for(
+        lambda: frames_after(probe, t_corrupt, lambda s: s.crc_failed and is_kind(DriveTelemetry)(s), 1),
+        mill.timeout(30.0),
+        f"a DriveTelemetry frame with a bad CRC at a corruption of {OCCASIONAL_CORRUPTION}",
+    )
+    probe.inject(SimFaultCode.TX_CORRUPT, active=False)
+    wait_for(
+        lambda: e2e_counts(mill).get("wrong-crc", 0) > before.get("wrong-crc", 0),
+        mill.timeout(5.0),
+        "the controller to count the bad CRC (wrong-crc)",
+    )
     assert mill.status()["state"] == "RUNNING", mill.status()["trip_cause"]
 
     t_all = probe.inject(SimFaultCode.TX_CORRUPT, 1.0)  # persistent errors fault the link
