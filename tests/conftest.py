@@ -87,7 +87,12 @@ def pytest_collection(session: pytest.Session) -> Generator[None, object, object
 # Hypothesis refuses derandomize=True and a database in one settings(...) call ("derandomize=True implies
 # database=None"), yet replays whatever database a settings object carries: the stored examples are added
 # to a derandomized parent (tests/unit/support/test_stored_examples.py shows them replayed).
-settings.register_profile("ci", settings(derandomize=True, print_blob=True), database=examples.replayed())
+# No deadline in CI: Hypothesis' default (200 ms an example) is a timed assertion, and on the shared 2-core
+# machine a correct example can wait longer than that for a core (test_limits.py's eq. 8a property failed
+# so, "Test took 257.12ms", at load 5). The fuzz job keeps it, to point at examples that are slow.
+settings.register_profile(
+    "ci", settings(derandomize=True, print_blob=True, deadline=None), database=examples.replayed()
+)
 settings.register_profile(
     "fuzz",
     derandomize=False,

@@ -29,6 +29,7 @@ def test_the_ci_profile_is_derandomized_and_reads_the_committed_examples_only() 
     assert ci.derandomize
     assert ci.database == ReadOnlyDatabase(DirectoryBasedExampleDatabase(examples.EXAMPLES_DIR))
     assert Phase.reuse in ci.phases and Phase.explicit in ci.phases
+    assert ci.deadline is None  # a timed assertion: a loaded CI machine failed a correct example on it
 
 
 def test_the_fuzz_profile_searches_afresh_and_writes_new_failures_to_the_committed_examples() -> None:
