@@ -520,6 +520,7 @@ class Controller:
         if state is S.TRIPPED and self._reset_pending:
             if node is NodeState.DISABLED and not status.fault_bits:
                 self._reset_pending = False
+                self._disarm_pending = False  # a DISARM lost before the trip is over: this one was the reset's
                 self.trip_cause = ""
                 self.expectation.end_stop()
                 self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
@@ -544,11 +545,14 @@ class Controller:
         elif state is S.STOPPING and node is NodeState.ARMED:
             self.expectation.end_stop()
             self.machine.go(S.ARMED, "controlled stop complete")
-        elif state is S.ARMED and node is NodeState.DISABLED and self._disarm_pending:
-            self._disarm_pending = False
-            self.machine.go(S.DISABLED, "node DISABLED (disarmed)")
+        elif state in (S.ARMED, S.STOPPING) and node is NodeState.DISABLED and self._disarm_pending:
+            self._disarm_pending = False  # DISARM, then maybe a STOP it overtook (a no-op at rest): both confirmed
+            self.expectation.end_stop()
+            self.machine.go(S.DISABLED, "node DISABLED (disarmed)" if state is S.ARMED else
+                            "node DISABLED: it took the DISARM sent before the STOP (at rest, disabled)")
         elif state in (S.ARMED, S.RUNNING, S.STOPPING) and node is NodeState.DISABLED:
-            self._trip(f"node reports DISABLED while the controller is {state}: the node restarted", "node")
+            self._trip(f"node reports DISABLED while the controller is {state} with no DISARM of its own pending: "
+                       "the node restarted, or another sender disarmed it", "node")
 
     def _on_measured(self, measured: DriveTelemetry) -> None:
         """Check a measured pair: the envelope (until tripped), and what was commanded (in every state)."""
