@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationInfo
 
 from millctl.api.enums import BusCondition, ControllerState, ErrorCode, EventKind, RunState, SimFaultName
 
@@ -218,6 +218,22 @@ class ControlOut(Strict):
 
 
 # ---------------------------------------------------------------- commands
+def _rate_needs_target(rate_c_per_min: float | None, info: ValidationInfo) -> float | None:
+    """A heating rate with no furnace target (``temp_c`` null) is refused, not ignored: all or nothing."""
+    if rate_c_per_min is not None and "temp_c" in info.data and info.data["temp_c"] is None:
+        raise ValueError(
+            f"heating rate {rate_c_per_min} °C/min given without a furnace target (body.temp_c): there is "
+            "nothing to heat to, and the rate would be ignored; give the target with it, or leave the rate out"
+        )
+    return rate_c_per_min
+
+
+HeatingRate = Annotated[
+    Annotated[float, Field(allow_inf_nan=False, gt=0.0, le=10_000.0)] | None, AfterValidator(_rate_needs_target)
+]
+"""A heating rate (°C/min) of a request that also has ``temp_c``: refused when ``temp_c`` is null."""
+
+
 class SetpointsRequest(Strict):
     """New drive speeds; the controller plans a ramp inside the envelope or refuses."""
 
@@ -230,16 +246,16 @@ class SetpointsRequest(Strict):
     temp_c: float | None = Field(default=None, allow_inf_nan=False, ge=-1_000.0, le=10_000.0,
                                  description="furnace target (°C) set with the speeds, all or nothing: "
                                  "when any part is refused, no part is applied")
-    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
-                                         description="heating rate with temp_c (°C/min); default: config")
+    rate_c_per_min: HeatingRate = Field(default=None, description="heating rate with temp_c (°C/min); default: "
+                                        "config. Without temp_c: 422, nothing applied")
 
 
 class FurnaceRequest(Strict):
     """A furnace target (°C), or null to turn the heater off."""
 
     temp_c: float | None = Field(allow_inf_nan=False, ge=-1_000.0, le=10_000.0, description="target (°C)")
-    rate_c_per_min: float | None = Field(default=None, allow_inf_nan=False, gt=0.0, le=10_000.0,
-                                         description="heating rate (°C/min); default: config")
+    rate_c_per_min: HeatingRate = Field(default=None, description="heating rate (°C/min); default: config. "
+                                        "With temp_c null (heater off): 422, nothing applied")
 
 
 class CommandOut(Strict):

@@ -47,6 +47,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     setp.add_argument("--rot-rpm", type=finite_float, required=True, help="rotary speed ω_r (rpm)")
     setp.add_argument("--vib-rpm", type=finite_float, required=True, help="vibration speed ω_v (rpm)")
     setp.add_argument("--temp-c", type=finite_float, help="furnace target (°C); refused together with the speeds")
+    setp.add_argument("--heat-rate", type=finite_float, metavar="C_PER_MIN",
+                      help="heating rate to --temp-c (°C/min; default: the furnace's maximum); needs --temp-c")
     setp.add_argument("--rot-rate", type=finite_float, help="rotary ramp rate (rpm/s; default: the drive's maximum)")
     setp.add_argument("--vib-rate", type=finite_float, help="vibration ramp rate (rpm/s; default: the drive's maximum)")
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
@@ -101,6 +103,7 @@ def _set(args: argparse.Namespace) -> int:
                 vibration_rate_rpm_s=args.vib_rate,
                 linear=args.linear,
                 temp_c=args.temp_c,  # one request: the service checks speeds and furnace whole
+                rate_c_per_min=args.heat_rate,
             )
         )
     _report(args, results)

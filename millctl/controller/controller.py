@@ -27,7 +27,7 @@ from millctl.controller.overtake import RunOrders
 from millctl.controller.states import ControllerState, StateMachine, Transition
 from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
-from millctl.errors import InterlockError
+from millctl.errors import InterlockError, InvalidInputError
 from millctl.protocol import (
     AliveCounter,
     BusReader,
@@ -246,7 +246,7 @@ class Controller:
         round (InterlockRefused, nothing sent).
         """
         self._require(Operation.SET, "set speeds", source)
-        rate_c_per_min = None if furnace_c is None else self._check_furnace(furnace_c, heating_rate_c_per_min, source)
+        furnace = self._furnace_part(furnace_c, heating_rate_c_per_min, source)
         target = SpeedPoint(rotary_rpm, vibration_rpm)
         try:
             if linear:
@@ -267,8 +267,8 @@ class Controller:
             vibration_rpm=move.end.omega_v_rpm,
             duration_s=move.duration_s,
         )
-        if furnace_c is not None and rate_c_per_min is not None:
-            self._apply_furnace(furnace_c, rate_c_per_min, source)
+        if furnace is not None:
+            self._apply_furnace(*furnace, source)
         return move
 
     def set_furnace(
@@ -276,11 +276,30 @@ class Controller:
     ) -> None:
         """Set the furnace target (ramped at the heating rate); None turns the heater off."""
         if temp_c is None:
+            self._furnace_part(None, rate_c_per_min, source)  # a rate with the heater off is refused, not ignored
             self.furnace_target_c = None
             self._emit(EventKind.COMMAND, source, "heater off")
             return
         self._require(Operation.FURNACE, "set the furnace", source)
         self._apply_furnace(temp_c, self._check_furnace(temp_c, rate_c_per_min, source), source)
+
+    def _furnace_part(
+        self, temp_c: float | None, rate_c_per_min: float | None, source: str
+    ) -> tuple[float, float] | None:
+        """The furnace part of a command, checked: (target °C, heating rate °C/min), None when it has none.
+
+        A heating rate with no target is refused, not ignored (docs/safety.md#setpoint-interlock).
+        """
+        if temp_c is None:
+            if rate_c_per_min is not None:
+                reason = (
+                    f"heating rate {rate_c_per_min} °C/min given without a furnace target: there is nothing to "
+                    "heat to, and the rate would be ignored; give the target with it, or leave the rate out"
+                )
+                self._emit(EventKind.REFUSAL, source, reason, heating_rate_c_per_min=rate_c_per_min)
+                raise InvalidInputError(reason)
+            return None
+        return temp_c, self._check_furnace(temp_c, rate_c_per_min, source)
 
     def _check_furnace(self, temp_c: float, rate_c_per_min: float | None, source: str) -> float:
         """Check a furnace target and heating rate (°C, °C/min); return the rate in force, or refuse."""
@@ -520,6 +539,7 @@ class Controller:
         if state is S.TRIPPED and self._reset_pending:
             if node is NodeState.DISABLED and not status.fault_bits:
                 self._reset_pending = False
+                self._disarm_pending = False  # a DISARM lost before the trip is over: this one was the reset's
                 self.trip_cause = ""
                 self.expectation.end_stop()
                 self.machine.go(S.DISABLED, "reset complete: node DISABLED, causes cleared")
@@ -544,11 +564,14 @@ class Controller:
         elif state is S.STOPPING and node is NodeState.ARMED:
             self.expectation.end_stop()
             self.machine.go(S.ARMED, "controlled stop complete")
-        elif state is S.ARMED and node is NodeState.DISABLED and self._disarm_pending:
-            self._disarm_pending = False
-            self.machine.go(S.DISABLED, "node DISABLED (disarmed)")
+        elif state in (S.ARMED, S.STOPPING) and node is NodeState.DISABLED and self._disarm_pending:
+            self._disarm_pending = False  # DISARM, then maybe a STOP it overtook (a no-op at rest): both confirmed
+            self.expectation.end_stop()
+            self.machine.go(S.DISABLED, "node DISABLED (disarmed)" if state is S.ARMED else
+                            "node DISABLED: it took the DISARM sent before the STOP (at rest, disabled)")
         elif state in (S.ARMED, S.RUNNING, S.STOPPING) and node is NodeState.DISABLED:
-            self._trip(f"node reports DISABLED while the controller is {state}: the node restarted", "node")
+            self._trip(f"node reports DISABLED while the controller is {state} with no DISARM of its own pending: "
+                       "the node restarted, or another sender disarmed it", "node")
 
     def _on_measured(self, measured: DriveTelemetry) -> None:
         """Check a measured pair: the envelope (until tripped), and what was commanded (in every state)."""

@@ -3,8 +3,9 @@
 ::
 
     DISCONNECTED ──node seen──▶ DISABLED ──arm──▶ ARMED ──setpoint──▶ RUNNING
-                                   ▲  ▲            │  ▲                 │
-                                   │  └──disarm────┘  └──standstill── STOPPING ◀─stop─┘
+                                   ▲ ▲▲            │  ▲                 │
+                                   │ │└──disarm────┘  └──standstill── STOPPING ◀─stop─┘
+                                   │ └──── node took a DISARM sent before the STOP ┘
                                    │
                                  reset ◀── TRIPPED ◀── any trip, from any state
 
@@ -30,7 +31,7 @@ TRANSITIONS: dict[ControllerState, frozenset[ControllerState]] = {
     S.DISABLED: frozenset({S.ARMED, S.TRIPPED, S.DISCONNECTED}),
     S.ARMED: frozenset({S.RUNNING, S.DISABLED, S.STOPPING, S.TRIPPED}),
     S.RUNNING: frozenset({S.STOPPING, S.TRIPPED}),
-    S.STOPPING: frozenset({S.ARMED, S.RUNNING, S.TRIPPED}),
+    S.STOPPING: frozenset({S.ARMED, S.RUNNING, S.DISABLED, S.TRIPPED}),
     S.TRIPPED: frozenset({S.DISABLED}),
 }
 """Allowed moves: state → the states it may go to. Nothing else is possible."""

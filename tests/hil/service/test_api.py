@@ -238,6 +238,29 @@ def test_cli_set_with_a_refused_furnace_target_applies_no_part(
         client.disarm()
 
 
+
+def test_cli_set_with_a_heating_rate_but_no_furnace_target_is_refused_whole(
+    service: Service, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SAFETY requirement 20: `set --heat-rate 5` without `--temp-c` is not half-applied (speeds on, the rate
+    dropped) but refused as invalid input (exit 1), naming the flag, the value and why; nothing changes."""
+    assert main(["--config", str(service.config), "arm"]) == ExitCode.OK
+    with service.client() as client:
+        wait_for(lambda: client.status().state is ControllerState.ARMED, what="ARMED")
+    capsys.readouterr()
+    refused = main(["--config", str(service.config), "set", "--rot-rpm", "20", "--vib-rpm", "200",
+                    "--heat-rate", "5", "--json"])
+    assert refused == ExitCode.INVALID_INPUT
+    error = json.loads(capsys.readouterr().out)["error"]
+    assert error["flag"] == "--heat-rate"
+    assert "heating rate 5.0 °C/min given without a furnace target (--temp-c)" in error["message"]
+    with service.client() as client, client.control():
+        status = client.status()
+        assert (status.target_rotary_rpm, status.target_vibration_rpm, status.furnace_target_c) == (0.0, 0.0, None)
+        assert status.state is ControllerState.ARMED
+        client.disarm()
+
+
 DEMO = Path(__file__).resolve().parents[3] / "config" / "recipes" / "demo.toml"
 
 

@@ -10,6 +10,7 @@ import pytest
 
 from millctl.config import MillConfig
 from millctl.controller import ControllerState, EventKind
+from millctl.errors import InvalidInputError
 from millctl.protocol import Command, NodeState, Setpoints
 from millctl.safety import STANDSTILL, InterlockRefused, SpeedPoint
 from tests.unit.controller.bench import ScriptedNode
@@ -104,6 +105,38 @@ def test_a_refused_speed_part_leaves_the_furnace_untouched(bench: ScriptedNode) 
     with pytest.raises(InterlockRefused):
         bench.controller.set_speeds(250.0, 800.0, furnace_c=60.0)
     assert bench.controller.furnace_target_c is None and bench.controller.trajectory is None
+
+
+def test_a_heating_rate_without_a_furnace_target_is_refused_and_nothing_applies(bench: ScriptedNode) -> None:
+    """A multi-part command is checked whole (SAFETY requirement 20): a heating rate with no target to heat to
+    is not ignored but refused, naming the value and why, and neither the speeds nor the furnace change."""
+    bench.armed()
+    sent_before = len(bench.of(Command))
+    with pytest.raises(InvalidInputError) as refused:
+        bench.controller.set_speeds(20.0, 200.0, heating_rate_c_per_min=5.0, source=WHO)
+    assert str(refused.value) == (
+        "heating rate 5.0 °C/min given without a furnace target: there is nothing to heat to, and the rate "
+        "would be ignored; give the target with it, or leave the rate out"
+    )
+    event = bench.last_event(EventKind.REFUSAL)
+    assert (event.source, event.message, event.data) == (WHO, str(refused.value), {"heating_rate_c_per_min": 5.0})
+    assert bench.controller.trajectory is None and bench.controller.furnace_target_c is None
+    bench.run(0.5, follow=True)
+    assert {(s.rotary_rpm, s.vibration_rpm, s.heater_on) for s in bench.messages(Setpoints)} == {(0.0, 0.0, False)}
+    assert len(bench.of(Command)) == sent_before
+    bench.controller.set_speeds(20.0, 200.0)  # without the rate: the speeds alone, the heater left off
+    assert bench.controller.trajectory is not None and bench.controller.furnace_target_c is None
+
+
+def test_a_heating_rate_with_the_heater_off_is_refused(bench: ScriptedNode) -> None:
+    """``set_furnace(None)`` turns the heater off; a rate given with it would be ignored: refused instead,
+    and the heater stays as it was."""
+    bench.armed()
+    bench.controller.set_furnace(60.0)
+    with pytest.raises(InvalidInputError, match=r"^heating rate 5.0 °C/min given without a furnace target"):
+        bench.controller.set_furnace(None, rate_c_per_min=5.0, source=WHO)
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
+    assert bench.controller.furnace_target_c == 60.0
 
 
 def test_a_move_set_late_in_a_run_starts_from_where_the_mill_is(bench: ScriptedNode) -> None:
