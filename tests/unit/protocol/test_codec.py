@@ -237,6 +237,17 @@ def test_a_dbc_whose_crc_is_not_byte_0_is_refused_when_loaded(tmp_path: Any, crc
         Codec(dbc)
 
 
+def test_a_dbc_message_with_a_signal_its_class_does_not_carry_is_refused_when_loaded(tmp_path: Any) -> None:
+    """The encoder fills exactly the class's fields (cantools' own strict check is not run per frame)."""
+    text = CODEC.path.read_text(encoding="utf-8")
+    command = 'SG_ command : 16|8@1+ (1,0) [1|4] "" Node'
+    assert command in text
+    dbc = tmp_path / "extra-signal.dbc"
+    dbc.write_text(text.replace(command, command + '\n SG_ spare : 24|8@1+ (1,0) [0|255] "" Node', 1), "utf-8")
+    with pytest.raises(ProtocolError, match=r"Command has signals \['spare'\] that the message class does not"):
+        Codec(dbc)
+
+
 def test_the_crc_is_byte_0_over_bytes_1_to_7_of_what_the_dbc_packs() -> None:
     """Byte 0 of every E2E frame is the CRC of its data ID and bytes 1-7, the rest is the DBC's packing."""
     messages: list[MillMessage] = [
