@@ -17,6 +17,7 @@ probe skip there. docs/operations.md, "Hardware-in-the-loop scenarios".
 
 from __future__ import annotations
 
+import functools
 import itertools
 import re
 import time
@@ -404,6 +405,11 @@ def frames_after(probe: Probe, after: float, where: Callable[[Seen], bool], coun
     return found if len(found) >= count else None
 
 
+def counted_more(mill: Mill, before: dict[str, int], status: str) -> bool:
+    """True once the controller has counted more DriveTelemetry frames of this E2E ``status`` than ``before``."""
+    return e2e_counts(mill).get(status, 0) > before.get(status, 0)
+
+
 def test_frame_loss_and_corruption_are_counted_and_the_mill_stays_safe(
     bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -418,13 +424,13 @@ def test_frame_loss_and_corruption_are_counted_and_the_mill_stays_safe(
         before = e2e_counts(mill)
         t_loss = probe.inject(SimFaultCode.TX_LOSS, probability)
         wait_for(
-            lambda t=t_loss: frames_after(probe, t, is_kind(DriveTelemetry), LOSS_PHASE_FRAMES),
+            functools.partial(frames_after, probe, t_loss, is_kind(DriveTelemetry), LOSS_PHASE_FRAMES),
             mill.timeout(10.0),
             f"{LOSS_PHASE_FRAMES} DriveTelemetry frames at a loss of {probability}",
         )
         if probability >= 0.2:
             wait_for(
-                lambda b=before: e2e_counts(mill).get("ok-some-lost", 0) > b.get("ok-some-lost", 0),
+                functools.partial(counted_more, mill, before, "ok-some-lost"),
                 mill.timeout(5.0),
                 "the controller to count a frame after a lost one (ok-some-lost)",
             )
@@ -443,7 +449,7 @@ def test_frame_loss_and_corruption_are_counted_and_the_mill_stays_safe(
     )
     probe.inject(SimFaultCode.TX_CORRUPT, active=False)
     wait_for(
-        lambda: e2e_counts(mill).get("wrong-crc", 0) > before.get("wrong-crc", 0),
+        functools.partial(counted_more, mill, before, "wrong-crc"),
         mill.timeout(5.0),
         "the controller to count the bad CRC (wrong-crc)",
     )
