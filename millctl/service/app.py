@@ -266,8 +266,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
                        lambda c, s: c.set_furnace(body.temp_c, rate_c_per_min=body.rate_c_per_min, source=s))
 
     # ------------------------------------------------------------------ recipes
-    def recipe_action(lease: str | None, action: Any) -> RecipeOut:
-        holder = rt.leases.check(lease).holder
+    def recipe_action(lease: str | None, action: Any, *, arrived_s: float | None = None) -> RecipeOut:
+        holder = rt.leases.check(lease, arrived_s=arrived_s).holder
         progress = rt.call(lambda c: action(holder))
         return RecipeOut(active=rt.recipe.active, progress=RecipeProgress.model_validate(finite(progress)))
 
@@ -282,12 +282,14 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
 
         The service opens no path a request names: a client may be on another machine.
         """
+        arrived_s = rt.clock.now()
         rt.leases.check(x_millctl_lease)
         loaded, plan = rt.recipe.prepare(body.name, body.text, rt.config)  # in this request's thread, not the loop
         run_id, lock = rt.recipe.lock_new_run()  # its record's lock: a live run is never taken for an interrupted one
-        try:
+        try:  # checked again: taken over meanwhile is refused; a pre-flight longer than the lease's life is not
             return recipe_action(x_millctl_lease, lambda who: rt.recipe.start(loaded, plan, who, run_id=run_id,
-                                                                             lock=lock, text=body.text))
+                                                                             lock=lock, text=body.text),
+                                 arrived_s=arrived_s)
         except BaseException:
             lock.release(remove_if_empty=True)
             raise

@@ -89,10 +89,17 @@ class LeaseManager:
             self._lease = Lease(secrets.token_urlsafe(18), holder, now, self.ttl_s)
             return self._lease, taken_from
 
-    def check(self, lease_id: str | None) -> Lease:
-        """Renew and return the lease if ``lease_id`` is the live lease; otherwise raise :class:`LeaseError`."""
+    def check(self, lease_id: str | None, *, arrived_s: float | None = None) -> Lease:
+        """Renew and return the lease if ``lease_id`` is the live lease; otherwise raise :class:`LeaseError`.
+
+        ``arrived_s`` (clock time) is when the request carrying the lease arrived: a lease live then
+        stays good for the whole request, so a request the service itself takes long over (a recipe's
+        pre-flight, checked again before the start) is not refused for the service's own slowness.
+        Who holds the lease is judged now: a lease released or taken over since is refused.
+        """
         with self._lock:
             now = self.clock.now()
+            judged = now if arrived_s is None else min(arrived_s, now)
             lease = self._lease
             if lease is None:
                 raise LeaseError("nobody has control: take control first (POST /v1/control/take)")
@@ -103,9 +110,9 @@ class LeaseManager:
                     f"control is held by {lease.holder}, whose lease expired; take it over with force",
                     holder=lease.holder,
                 )
-            if lease.remaining_s(now) <= 0.0:
+            if lease.remaining_s(judged) <= 0.0:
                 raise LeaseError(
-                    f"your lease ({lease.holder}) expired {-lease.remaining_s(now):.0f} s ago: take control again",
+                    f"your lease ({lease.holder}) expired {-lease.remaining_s(judged):.0f} s ago: take control again",
                     holder=lease.holder,
                 )
             lease.renewed_s = now

@@ -19,6 +19,7 @@ import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -26,6 +27,9 @@ from millctl.client import Client
 from millctl.config.loader import packaged_file
 from tests.support.pace import Deadline, stretched
 from tests.support.realtime import popen as realtime_popen
+
+if TYPE_CHECKING:
+    from millctl.service import ServiceRuntime
 
 REPO = Path(__file__).resolve().parents[2]
 START_TIMEOUT_S = 30.0
@@ -165,3 +169,33 @@ def wait_for(condition: Callable[[], object], timeout_s: float = 10.0, what: str
             return
         time.sleep(0.05)
     pytest.fail(f"timed out after {deadline.describe()} waiting for {what}")
+
+
+# --- a runtime stepped by hand (unit tier): no loop thread, no timing --------------------------------------------
+NODE_SEEN_WITHIN_S = 1.0
+"""Mill time within which the controller hears the embedded node (s): its status is sent at 10 Hz."""
+
+
+def advance(runtime: ServiceRuntime, seconds: float) -> None:
+    """Tick controller, recipe runner and embedded node through ``seconds`` of mill time, as the loop would."""
+    from millctl.clock import ManualClock
+
+    clock = runtime.clock
+    assert isinstance(clock, ManualClock)
+    period_s = runtime.config.timing.controller_tick_s
+    for _ in range(round(seconds / period_s)):
+        runtime.tick()
+        clock.advance(period_s)
+
+
+def stepped_runtime(directory: Path) -> ServiceRuntime:
+    """A runtime with the embedded node on a manual clock, its loop not started, once it has heard the node."""
+    from millctl.clock import ManualClock
+    from millctl.config import load_config
+    from millctl.controller import ControllerState
+    from millctl.service import ServiceRuntime
+
+    runtime = ServiceRuntime(load_config(write_config(directory)), clock=ManualClock())
+    advance(runtime, NODE_SEEN_WITHIN_S)
+    assert runtime.controller.state is ControllerState.DISABLED, runtime.controller.state
+    return runtime

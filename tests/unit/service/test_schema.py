@@ -38,12 +38,10 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
-from millctl.clock import ManualClock
 from millctl.config import load_config
-from millctl.controller import ControllerState
 from millctl.service import ServiceRuntime, create_app
 from tests.support import examples
-from tests.support.service import write_config
+from tests.support.service import advance, stepped_runtime, write_config
 
 REPO = Path(__file__).resolve().parents[3]
 DEMO_RECIPE = (REPO / "config" / "recipes" / "demo.toml").read_text()
@@ -53,8 +51,6 @@ CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
 MILL_S_PER_REQUEST = 0.02
 """Mill time the test steps the runtime through after each request (s): two ticks, about what a request took
 on the real loop, so that what one request starts (an arm, a ramp, a furnace target) goes on under the next."""
-NODE_SEEN_WITHIN_S = 1.0
-"""Mill time within which the controller hears the embedded node (s): its status is sent at 10 Hz."""
 
 
 OPERATIONS = (
@@ -85,24 +81,6 @@ OPERATIONS = (
 )
 """Every operation of the API but the endless event stream (``GET /v1/stream``, tested over the socket): one test
 each (test_the_fuzzed_operations_are_every_operation_but_the_stream keeps this list whole)."""
-
-
-def advance(runtime: ServiceRuntime, seconds: float) -> None:
-    """Tick controller, recipe runner and embedded node through ``seconds`` of mill time, as the loop would."""
-    clock = runtime.clock
-    assert isinstance(clock, ManualClock)
-    period_s = runtime.config.timing.controller_tick_s
-    for _ in range(round(seconds / period_s)):
-        runtime.tick()
-        clock.advance(period_s)
-
-
-def stepped_runtime(directory: Path) -> ServiceRuntime:
-    """A runtime with the embedded node on a manual clock, its loop not started, once it has heard the node."""
-    runtime = ServiceRuntime(load_config(write_config(directory)), clock=ManualClock())
-    advance(runtime, NODE_SEEN_WITHIN_S)
-    assert runtime.controller.state is ControllerState.DISABLED, runtime.controller.state
-    return runtime
 
 
 @pytest.fixture(scope="module")
