@@ -83,6 +83,17 @@ class RampStep(_Strict):
     tolerances: Tolerances | None = None
     note: str = ""
 
+    @model_validator(mode="after")
+    def _rate_needs_target(self) -> RampStep:
+        """A heating rate with no furnace target is refused, not ignored: a step is checked whole (SAFETY 20)."""
+        if self.heating_rate_c_per_min is not None and self.furnace_c is None:
+            raise ValueError(
+                f"heating_rate_c_per_min = {self.heating_rate_c_per_min} given without furnace_c: there is nothing "
+                "to heat to, and the rate would be ignored; give furnace_c with it, or leave the rate out "
+                "(a default rate for every step goes in [defaults])"
+            )
+        return self
+
 
 class HoldStep(_Timed):
     """Keep the current setpoints for a duration, or until a specific energy dose."""

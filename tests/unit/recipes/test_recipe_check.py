@@ -54,8 +54,14 @@ def test_demo_is_under_a_minute(config: MillConfig) -> None:
         ("[[steps]]\nkind = 'ramp'\nrotary_rpm = -5\nvibration_rpm = 100", r"rotary_rpm = -5: .*bound: ≥ 0"),
         ("[[steps]]\nkind = 'spin'\n", r"steps\.0 = .*'spin'.*does not match any of the expected tags"),
         ("", r"steps = \(missing\): Field required"),
+        (
+            "[[steps]]\nkind = 'ramp'\nrotary_rpm = 60\nvibration_rpm = 300\nheating_rate_c_per_min = 5",
+            r"steps\.0\.ramp: .*heating_rate_c_per_min = 5\.0 given without furnace_c: there is nothing to heat to",
+        ),
     ],
-    ids=["syntax", "unknown-key", "unit", "two-durations", "out-of-range", "unknown-kind", "no-steps"],
+    ids=[
+        "syntax", "unknown-key", "unit", "two-durations", "out-of-range", "unknown-kind", "no-steps", "rate-no-target"
+    ],
 )
 def test_invalid_recipe_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str, pattern: str) -> None:
     path = write(tmp_path, body)
