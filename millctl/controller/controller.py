@@ -275,13 +275,14 @@ class Controller:
         self, temp_c: float | None, *, rate_c_per_min: float | None = None, source: str = "operator"
     ) -> None:
         """Set the furnace target (ramped at the heating rate); None turns the heater off."""
-        if temp_c is None:
-            self._furnace_part(None, rate_c_per_min, source)  # a rate with the heater off is refused, not ignored
+        if temp_c is not None:  # turning the heater off is allowed in every state
+            self._require(Operation.FURNACE, "set the furnace", source)
+        furnace = self._furnace_part(temp_c, rate_c_per_min, source)  # a rate with the heater off: refused
+        if furnace is None:
             self.furnace_target_c = None
             self._emit(EventKind.COMMAND, source, "heater off")
             return
-        self._require(Operation.FURNACE, "set the furnace", source)
-        self._apply_furnace(temp_c, self._check_furnace(temp_c, rate_c_per_min, source), source)
+        self._apply_furnace(*furnace, source)
 
     def _furnace_part(
         self, temp_c: float | None, rate_c_per_min: float | None, source: str

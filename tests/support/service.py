@@ -32,6 +32,8 @@ if TYPE_CHECKING:
     from millctl.service import ServiceRuntime
 
 REPO = Path(__file__).resolve().parents[2]
+DEMO_RECIPE = REPO / "config" / "recipes" / "demo.toml"
+"""The shipped demo recipe: under a minute at reduced speeds, then a short run near the paper's point."""
 START_TIMEOUT_S = 30.0
 """A safety net for start-up, not a measurement; it stretches with load (tests.support.pace)."""
 STOP_TIMEOUT_S = 30.0

@@ -23,6 +23,7 @@ from millctl.errors import ExitCode, InterlockError, InvalidInputError
 from millctl.records import read_records
 from millctl.service.app import SETTLE_S
 from tests.support.pace import stretched
+from tests.support.service import DEMO_RECIPE as DEMO
 from tests.support.service import Service, wait_for
 
 SYSTEM_PYTHON = "/usr/bin/python3"
@@ -238,7 +239,6 @@ def test_cli_set_with_a_refused_furnace_target_applies_no_part(
         client.disarm()
 
 
-
 def test_cli_set_with_a_heating_rate_but_no_furnace_target_is_refused_whole(
     service: Service, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -261,7 +261,6 @@ def test_cli_set_with_a_heating_rate_but_no_furnace_target_is_refused_whole(
         client.disarm()
 
 
-DEMO = Path(__file__).resolve().parents[3] / "config" / "recipes" / "demo.toml"
 
 
 def test_a_recipe_runs_pauses_and_aborts_and_a_bad_one_is_refused(service: Service, tmp_path: Path) -> None:

@@ -25,11 +25,10 @@ import httpx
 import pytest
 
 from tests.support.pace import stretched
-from tests.support.service import REPO, Service, private_dir, start_service, wait_for, write_config
+from tests.support.service import Service, private_dir, start_service, wait_for, write_config
 
 HEARTBEAT_ID = "020"
 """The Heartbeat frame's identifier (config/millbus.dbc, BO_ 32)."""
-DEMO = REPO / "config" / "recipes" / "demo.toml"
 BIG_BODY_BYTES = 200 << 20
 
 _LINE = re.compile(r"^\((?P<t>[0-9.]+)\) (?P<chan>\S+) (?P<id>[0-9A-F]{3,8})#(?P<data>[0-9A-F]*) (?P<dir>[RT])$")

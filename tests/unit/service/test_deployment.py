@@ -16,10 +16,8 @@ from millctl.config.paths import SOCKET_NAME, service_paths
 from millctl.errors import ConfigError, ExitCode
 from millctl.service import ServiceRuntime, create_app
 from millctl.service.journal import Journal
+from tests.support.service import DEMO_RECIPE as DEMO
 from tests.support.service import write_config
-
-REPO = Path(__file__).resolve().parents[3]
-DEMO = REPO / "config" / "recipes" / "demo.toml"
 
 
 def _loaded(tmp_path: Path, service: str = "", bus: str = "") -> LoadedConfig:

@@ -12,9 +12,7 @@ import pytest
 from millctl.clock import ManualClock
 from millctl.service import create_app
 from millctl.service.lease import LeaseError, LeaseManager
-from tests.support.service import REPO, advance, stepped_runtime
-
-DEMO = (REPO / "config" / "recipes" / "demo.toml").read_text()
+from tests.support.service import DEMO_RECIPE, advance, stepped_runtime
 
 
 def test_one_holder_at_a_time_and_only_it_may_command() -> None:
@@ -115,7 +113,8 @@ async def test_a_recipe_whose_pre_flight_outlasts_the_lease_still_starts(
             headers = {"X-Millctl-Lease": lease}
             assert (await http.post("/v1/arm", headers=headers)).status_code == 200
             advance(runtime, 0.5)
-            response = await http.post("/v1/recipe/run", headers=headers, json={"name": "demo", "text": DEMO})
+            recipe = {"name": "demo", "text": DEMO_RECIPE.read_text()}
+            response = await http.post("/v1/recipe/run", headers=headers, json=recipe)
         assert response.status_code == 200, response.text
         assert response.json()["active"] is True
     finally:

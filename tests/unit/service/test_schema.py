@@ -41,10 +41,10 @@ from schemathesis.specs.openapi.checks import (
 from millctl.config import load_config
 from millctl.service import ServiceRuntime, create_app
 from tests.support import examples
+from tests.support.service import DEMO_RECIPE as DEMO_RECIPE_FILE
 from tests.support.service import advance, stepped_runtime, write_config
 
-REPO = Path(__file__).resolve().parents[3]
-DEMO_RECIPE = (REPO / "config" / "recipes" / "demo.toml").read_text()
+DEMO_RECIPE = DEMO_RECIPE_FILE.read_text()
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 
 
