@@ -246,6 +246,9 @@ class Controller:
         round (InterlockRefused, nothing sent).
         """
         self._require(Operation.SET, "set speeds", source)
+        if self._disarm_pending:  # the node disarms at rest and then refuses every setpoint: never drop a ramp
+            self._refuse(source, "set speeds is not possible while a DISARM is pending: "
+                         "arm again once the node reports DISABLED")
         furnace = self._furnace_part(furnace_c, heating_rate_c_per_min, source)
         target = SpeedPoint(rotary_rpm, vibration_rpm)
         try:

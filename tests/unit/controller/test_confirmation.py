@@ -127,6 +127,27 @@ def test_disarm_needs_both_setpoints_at_standstill(bench: ScriptedNode) -> None:
     assert sent_commands(bench, CommandCode.DISARM) == 0
 
 
+def test_speeds_set_while_a_disarm_is_pending_are_refused_not_dropped(bench: ScriptedNode) -> None:
+    """The node disarms at rest and then refuses every setpoint: a ramp accepted between the DISARM and the
+    node's answer would be dropped without a word (SAFETY requirement 20). It is refused, and recorded."""
+    bench.run(0.2, state=NodeState.DISABLED)
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    bench.controller.disarm()
+    with pytest.raises(CommandRefused, match="while a DISARM is pending"):
+        bench.controller.set_speeds(20.0, 100.0)
+    assert bench.controller.trajectory is None
+    assert [e.message for e in bench.events if e.kind is EventKind.REFUSAL] == [
+        "set speeds is not possible while a DISARM is pending: arm again once the node reports DISABLED"
+    ]
+    bench.run(0.2, state=NodeState.DISABLED)
+    assert bench.controller.state is S.DISABLED
+    bench.controller.arm()
+    bench.run(0.2, state=NodeState.ARMED)
+    bench.controller.set_speeds(20.0, 100.0)  # armed again: taken
+    assert bench.controller.trajectory is not None
+
+
 def test_an_e2e_faulted_node_link_trips(bench: ScriptedNode, config: MillConfig) -> None:
     from millctl.protocol import NodeStatus
 

@@ -155,7 +155,10 @@ def test_a_drive_above_the_stop_ceiling_is_judged_naming_the_ceiling(fresh: Spee
     for _ in range(DEBOUNCE - 1):
         assert fresh.check(late, 2.0 * TOL, 0.0) is None
     reason = fresh.check(late, 2.0 * TOL, 0.0)
-    assert reason is not None and "is not the stop ceiling" in reason
+    assert reason == (  # the band as the operator reads it: a low edge below 0 rpm shown as 0
+        "measured ω_r = 6.0 rpm, ω_v = 0.0 rpm is not the stop ceiling (ω_r 0.0…3.0 rpm, ω_v 0.0…3.0 rpm over the "
+        "last 2.0 s: interlock.command_confirm_s + drive settle, tolerance 3.0 rpm); above it for 3 samples in a row"
+    )
 
 
 @pytest.mark.parametrize("axis", [0, 1])

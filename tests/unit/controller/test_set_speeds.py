@@ -11,7 +11,7 @@ import pytest
 from millctl.config import MillConfig
 from millctl.controller import ControllerState, EventKind
 from millctl.errors import InvalidInputError
-from millctl.protocol import Command, NodeState, Setpoints
+from millctl.protocol import Command, DriveTelemetry, FurnaceTelemetry, NodeState, NodeStatus, Setpoints
 from millctl.safety import STANDSTILL, InterlockRefused, SpeedPoint
 from tests.unit.controller.bench import ScriptedNode
 
@@ -46,6 +46,7 @@ def test_a_move_is_recorded_with_who_asked_where_to_and_how_long(bench: Scripted
     move = bench.controller.set_speeds(20.0, 200.0, source=WHO)
     event = bench.last_event(EventKind.COMMAND)
     assert event.source == WHO
+    assert event.time_s == bench.clock.now() > 0.0  # when, on the controller's clock
     assert event.data == {"rotary_rpm": 20.0, "vibration_rpm": 200.0, "duration_s": move.duration_s}
     assert event.message == f"ramp to ω_r = 20.0 rpm, ω_v = 200.0 rpm over {move.duration_s:.1f} s"
     bench.controller.set_speeds(20.0, 250.0)
@@ -176,3 +177,44 @@ def test_drives_that_lag_a_ramp_down_within_the_window_are_not_a_trip(bench: Scr
         bench.clock.advance(0.01)
     assert bench.controller.state is ControllerState.RUNNING, bench.controller.trip_cause
     assert bench.messages(Setpoints)[-1] == Setpoints(10.0, 100.0, 25.0, False)
+
+
+def test_a_furnace_target_ramps_from_the_furnaces_measured_temperature(bench: ScriptedNode) -> None:
+    """The setpoint starts where the furnace is (a warm furnace is not first cooled to ambient), then climbs at
+    the heating rate; while the heater is on the setpoint ramps on from where it is."""
+    bench.armed()
+    bench.say(FurnaceTelemetry(140.0, 25.0, 0.0, False))  # still warm from an earlier run, heater off
+    bench.run(0.05)
+    bench.controller.set_furnace(300.0, rate_c_per_min=6.0, source=WHO)
+    assert bench.controller.furnace_setpoint_c == 140.0
+    event = bench.last_event(EventKind.COMMAND)
+    assert (event.source, event.message, event.data) == (WHO, "furnace to 300.0 °C at 6.0 °C/min", {"temp_c": 300.0})
+    bench.run(1.0, follow=True)
+    heating = bench.controller.furnace_setpoint_c
+    assert 140.0 < heating <= 140.0 + 6.0 / 60.0 * 1.0 + 1e-9  # climbing from there at no more than 0.1 °C/s
+    bench.controller.set_furnace(200.0, rate_c_per_min=6.0)  # a new target while heating: no jump
+    assert bench.controller.furnace_setpoint_c == heating
+
+
+def test_a_furnace_target_before_any_furnace_report_ramps_from_ambient(config: MillConfig) -> None:
+    """Armed on NodeStatus and DriveTelemetry alone (inside the furnace stream's start-up grace), the setpoint
+    starts from the configured ambient temperature."""
+    bench = ScriptedNode(config)
+    try:
+        for state in (NodeState.DISABLED, NodeState.ARMED):
+            for _ in range(4):
+                bench.say(NodeStatus(state))
+                bench.say(DriveTelemetry(0.0, 0.0))
+                bench.controller.tick()
+                bench.clock.advance(0.05)
+            if state is NodeState.DISABLED:
+                bench.controller.arm()
+        assert bench.controller.state is ControllerState.ARMED and bench.controller.furnace is None
+        bench.controller.set_furnace(60.0)
+        assert bench.controller.furnace_setpoint_c == config.furnace.ambient_temp_c
+        assert bench.last_event(EventKind.COMMAND).source == "operator"  # the default source
+        bench.controller.set_furnace(None)
+        off = bench.last_event(EventKind.COMMAND)
+        assert (off.source, off.message, bench.controller.furnace_target_c) == ("operator", "heater off", None)
+    finally:
+        bench.close()
