@@ -135,10 +135,10 @@ def test_speeds_set_while_a_disarm_is_pending_are_refused_not_dropped(bench: Scr
     bench.run(0.2, state=NodeState.ARMED)
     bench.controller.disarm()
     with pytest.raises(CommandRefused, match="while a DISARM is pending"):
-        bench.controller.set_speeds(20.0, 100.0)
+        bench.controller.set_speeds(20.0, 100.0, source="api:bob")
     assert bench.controller.trajectory is None
-    assert [e.message for e in bench.events if e.kind is EventKind.REFUSAL] == [
-        "set speeds is not possible while a DISARM is pending: arm again once the node reports DISABLED"
+    assert [(e.source, e.message) for e in bench.events if e.kind is EventKind.REFUSAL] == [
+        ("api:bob", "set speeds is not possible while a DISARM is pending: arm again once the node reports DISABLED")
     ]
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED

@@ -38,8 +38,10 @@ def test_each_heartbeat_echoes_the_challenge_of_the_latest_node_status(bench: Sc
 
 def test_connects_when_the_node_is_seen(bench: ScriptedNode) -> None:
     assert bench.controller.state is S.DISCONNECTED
+    assert bench.controller.trip_cause == ""  # the status shows no cause before any trip
     bench.run(0.2, state=NodeState.DISABLED)
     assert bench.controller.state is S.DISABLED
+    assert bench.controller.trip_cause == ""
 
 
 def test_arm_sends_command_and_follows_node(bench: ScriptedNode) -> None:
@@ -295,3 +297,22 @@ def test_a_stream_that_never_comes_is_a_fault_after_the_start_up_grace(bench: Sc
     assert bench.controller.state is S.TRIPPED
     assert "FurnaceTelemetry stale: never received" in bench.controller.trip_cause
     assert "interlock.startup_grace_s" in bench.controller.trip_cause
+
+
+def test_a_malformed_frame_is_counted_named_and_the_frames_after_it_are_still_taken(bench: ScriptedNode) -> None:
+    """SAFETY 19 and 22: bad input is counted, never raised, and does not end the drain; a node fault that
+    arrives right behind a malformed frame is acted on in the same tick."""
+    import can
+
+    from millctl.protocol import FaultCode, FaultFlag
+
+    bench.armed()
+    whole = bench.codec.encode(NodeStatus(NodeState.ARMED), 0)
+    short = can.Message(arbitration_id=whole.arbitration_id, data=bytes(whole.data[:1]), is_extended_id=False)
+    bench.bus.send(short)  # one byte where the DBC has eight
+    bench.say(NodeStatus(NodeState.FAULT, FaultFlag.STALL, FaultCode.STALL))
+    bench.controller.tick()
+    assert bench.controller.state is S.TRIPPED and "STALL" in bench.controller.trip_cause
+    assert bench.controller.invalid_frames == 1
+    error = bench.controller.reader.counts.last_error
+    assert error == "malformed frame: 0x100: frame 0x100 (NodeStatus): length 1, expected 8 bytes"

@@ -64,6 +64,25 @@ def test_a_furnace_setpoint_above_the_one_commanded_trips(bench: ScriptedNode) -
     assert f"heater on at {top + 5.0:.1f} °C" in bench.controller.trip_cause
 
 
+def test_a_node_one_wire_step_above_each_setpoint_it_was_sent_is_believed_all_along_a_ramp(
+    bench: ScriptedNode,
+) -> None:
+    """The expectation holds what the Setpoints frames carry, on the wire's 0.1 °C grid, so a report within one
+    grid step of it is believed at every point of a slow ramp, whichever way the setpoint was rounded."""
+    running(bench)
+    bench.controller.set_furnace(40.0, rate_c_per_min=6.0)  # 0.1 °C/s: each grid step takes 1 s
+    for i in range(300):
+        if i % 5 == 0:
+            node = bench.followed()
+            node["setpoint_c"] = float(node["setpoint_c"]) + 0.1  # type: ignore[arg-type]
+            bench.alive(**node)  # type: ignore[arg-type]
+        bench.controller.tick()
+        bench.collect()
+        bench.clock.advance(0.01)
+    assert heater_frames(bench)[-1].furnace_c > 25.2  # the ramp went over several grid steps
+    assert bench.controller.state is S.RUNNING, bench.controller.trip_cause
+
+
 def test_a_furnace_target_the_node_does_not_take_trips_after_a_lag_window(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.set_furnace(40.0)

@@ -205,3 +205,25 @@ def test_a_stream_exactly_its_bound_old_is_not_yet_stale(interlock: Interlock) -
     tracker.accept(frame(DriveTelemetry, 1), 1.0)
     assert tracker.stale(1.0) == []  # FurnaceTelemetry never received, 1.0 s: its start-up bound
     assert len(tracker.stale(1.0 + 1e-6)) == 2  # now NodeStatus and FurnaceTelemetry
+
+
+def test_each_fresh_frame_and_each_e2e_verdict_is_counted_for_the_status_display(interlock: Interlock) -> None:
+    tracker = TelemetryTracker(CODEC, interlock)
+    for counter in (1, 2, 3):
+        tracker.accept(frame(NodeStatus, counter), 0.1 * counter)
+    tracker.accept(frame(NodeStatus, 3), 0.4)  # repeated
+    tracker.accept(frame(NodeStatus, 3), 0.45)  # repeated again
+    health = tracker.health(0.5)["NodeStatus"]
+    assert (health["frames"], health["e2e"]) == (3, {"ok": 3, "repeated": 2})
+
+
+def test_the_configured_sequence_decay_is_the_links_own(interlock: Interlock) -> None:
+    """interlock.e2e_sequence_decay_frames: a repeated counter is forgiven after that many fresh frames."""
+    tracker = TelemetryTracker(CODEC, interlock.model_copy(update={"e2e_sequence_decay_frames": 2}))
+    tracker.accept(frame(DriveTelemetry, 1), 0.0)
+    tracker.accept(frame(DriveTelemetry, 1), 0.02)  # repeated: a sequence point
+    assert tracker.health(0.02)["DriveTelemetry"]["e2e_sequence_score"] == 1
+    tracker.accept(frame(DriveTelemetry, 2), 0.04)
+    assert tracker.health(0.04)["DriveTelemetry"]["e2e_sequence_score"] == 1
+    tracker.accept(frame(DriveTelemetry, 3), 0.06)  # the second fresh frame since: forgiven
+    assert tracker.health(0.06)["DriveTelemetry"]["e2e_sequence_score"] == 0
