@@ -25,7 +25,7 @@ import pytest
 from hypothesis import Phase, settings
 
 from millctl.config import MillConfig, load_config
-from tests.support import examples, mutation_tests
+from tests.support import examples, mutation_tests, timeouts
 from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
@@ -56,10 +56,12 @@ def pytest_configure(config: pytest.Config) -> None:
 
     pytest itself goes back to the normal policy here, before it starts a thread of its own
     (tests/support/realtime.py). Under mutmut, a mutant is judged by its own module's tests
-    (tests/support/mutation_tests.py).
+    (tests/support/mutation_tests.py). pytest-timeout's bound from pyproject.toml stretches with load
+    (tests/support/timeouts.py).
     """
     take_over()
     config.pluginmanager.register(mutation_tests, "mutation_tests")
+    config.pluginmanager.register(timeouts, "millctl_timeouts")
 
 
 @pytest.hookimpl(wrapper=True)
