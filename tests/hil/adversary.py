@@ -25,7 +25,7 @@ import msgpack
 from can.interfaces.udp_multicast.utils import pack_message
 
 from millctl.config.models import Bus
-from millctl.protocol import Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
+from millctl.protocol import BusReader, Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
 from tests.support.realtime import Role, start_thread
 
 CAN_BITRATE = 500_000
@@ -231,8 +231,22 @@ class Adversary:
 
         return self._background("second-sender", body, realtime="node")  # a device on the bus, like the node
 
+    def skip_backlog(self) -> int:
+        """Read and drop every frame queued on the adversary's socket (heard before now); return how many.
+
+        The socket queues all it hears from the moment it opens, and nothing reads it while the mill
+        starts. In the VM that start lasts long enough for the kernel to drop frames from the full queue
+        (seen: a "recording" of 16 heartbeats from three moments of the start, their alive counters
+        jumping where frames were dropped)."""
+        reader = BusReader(self.bus, "adversary")
+        skipped = 0
+        while frames := reader.drain().frames:
+            skipped += len(frames)
+        return skipped
+
     def record(self, kind: type[MillMessage], count: int, timeout_s: float) -> list[can.Message]:
-        """The next ``count`` frames of ``kind`` heard on the bus, as they were (for a replay)."""
+        """The next ``count`` frames of ``kind`` heard on the bus from now on, as they were (for a replay)."""
+        self.skip_backlog()
         recording: list[can.Message] = []
         deadline = time.monotonic() + timeout_s
         while len(recording) < count and time.monotonic() < deadline:
