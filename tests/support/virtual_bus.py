@@ -59,4 +59,18 @@ def install() -> None:
     can.interfaces.BACKENDS[INTERFACE] = BACKEND
 
 
-__all__ = ["BACKEND", "INTERFACE", "VirtualBus", "install"]
+class StatefulVirtualBus(VirtualBus):
+    """A virtual bus whose driver reports the CAN controller's state, as ixxat's and etas's do (tests set it)."""
+
+    bus_state = can.BusState.ACTIVE
+
+    @property
+    def state(self) -> can.BusState:
+        return self.bus_state
+
+    @state.setter
+    def state(self, new_state: can.BusState) -> None:
+        self.bus_state = new_state
+
+
+__all__ = ["BACKEND", "INTERFACE", "StatefulVirtualBus", "VirtualBus", "install"]

@@ -11,13 +11,13 @@ from __future__ import annotations
 import uuid
 
 import can
-from can.interfaces.virtual import VirtualBus
 
 from millctl.clock import ManualClock
 from millctl.config import MillConfig
 from millctl.controller import Controller, ControllerState, Event, EventKind
 from millctl.protocol import DriveTelemetry, FurnaceTelemetry, NodeState, NodeStatus, default_codec
 from millctl.protocol.bus_health import CAN_ERR_BUSOFF, CAN_ERR_CNT, CAN_ERR_CRTL
+from tests.support.virtual_bus import StatefulVirtualBus
 from tests.unit.controller.bench import ScriptedNode
 
 BUS_OFF_CAUSE = "error frame: bus-off (class 0x040)"
@@ -66,20 +66,6 @@ def test_a_bus_off_frame_trips_naming_the_bus_and_what_to_check(bench: ScriptedN
     (event,) = bus_events(bench.events)
     assert event.message == f"CAN controller bus-off: {BUS_OFF_CAUSE}"
     assert event.data == {"condition": "bus-off", "tx_error_counter": None, "rx_error_counter": None}
-
-
-class StatefulVirtualBus(VirtualBus):
-    """A virtual bus whose driver reports the controller's state, as ixxat's and etas's do."""
-
-    bus_state = can.BusState.ACTIVE
-
-    @property
-    def state(self) -> can.BusState:
-        return self.bus_state
-
-    @state.setter
-    def state(self, new_state: can.BusState) -> None:
-        self.bus_state = new_state
 
 
 def test_an_adapter_whose_state_goes_to_error_trips_naming_where_the_state_came_from(config: MillConfig) -> None:

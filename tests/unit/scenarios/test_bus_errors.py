@@ -14,12 +14,12 @@ from collections.abc import Iterator
 
 import can
 import pytest
-from can.interfaces.virtual import VirtualBus
 
 from millctl.api import BusCondition, EventKind, StatusOut
 from millctl.config import MillConfig
 from millctl.controller import ControllerState as S
 from millctl.protocol.bus_health import CAN_ERR_BUSOFF, CAN_ERR_CNT, CAN_ERR_CRTL, CAN_ERR_PROT, CAN_ERR_RESTARTED
+from tests.support.virtual_bus import StatefulVirtualBus
 from tests.unit.scenarios.rig import Rig
 
 LOW_RPM = (60.0, 300.0)
@@ -72,20 +72,6 @@ def test_bus_off_error_frame_trips_the_controller_with_its_reason(rig: Rig) -> N
     assert rig.controller.status().bus_health["condition"] == "error-active"
     assert rig.controller.state is S.TRIPPED, "a trip latches until reset, whatever the bus does after"
     assert bus_events(rig) == ["bus-off", "error-active"]
-
-
-class StatefulVirtualBus(VirtualBus):
-    """A virtual bus whose driver reports the controller's state, as ixxat's and etas's do."""
-
-    bus_state = can.BusState.ACTIVE
-
-    @property
-    def state(self) -> can.BusState:
-        return self.bus_state
-
-    @state.setter
-    def state(self, new_state: can.BusState) -> None:
-        self.bus_state = new_state
 
 
 def test_a_bus_whose_state_goes_to_error_trips_the_controller(config: MillConfig) -> None:
