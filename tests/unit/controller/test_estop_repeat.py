@@ -22,7 +22,9 @@ def test_an_operators_estop_is_repeated_until_the_node_reports_it(bench: Scripte
     assert bench.controller.state is ControllerState.TRIPPED
     bench.run(0.6, state=NodeState.FAULT)  # FAULT, but without the E-stop's bit: not yet acted on
     repeated = len(bench.messages(EStop))
-    assert repeated >= 3
+    repeat_s = bench.controller.config.interlock.command_repeat_s
+    # the first and one a repeat period (0.2 s) after it, not one a controller tick (0.01 s)
+    assert 3 <= repeated <= 2 + 0.6 / repeat_s, f"{repeated} E-stops in 0.6 s, one every {repeat_s} s expected"
     report_estop(bench, 0.2)
     reported = len(bench.messages(EStop))
     report_estop(bench, 0.6)
