@@ -101,8 +101,8 @@ def test_the_description_names_law_equation_and_margin(envelope: Envelope, confi
 
 
 def test_from_config_takes_every_bound_from_the_configuration(config: MillConfig) -> None:
-    # built in the body, not by the fixture: mutmut did not count the fixture's call as this test reaching
-    # from_config, and ran only other tests on its mutants (run 26, docs/safety.md)
+    # built here: the module's fixture is built once, for the first test, and mutmut credits from_config to that
+    # test alone, so it did not run this one on from_config's mutants (run 26, docs/safety.md)
     envelope = Envelope.from_config(config)
     drives, furnace, interlock = config.drives, config.furnace, config.interlock
     assert (envelope.law, envelope.margin) == (interlock.law, interlock.margin)
