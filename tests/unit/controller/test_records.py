@@ -68,6 +68,40 @@ def test_arm_refused_when_armed_names_it(bench: ScriptedNode) -> None:
     bench.armed(WHO)
     with pytest.raises(CommandRefused, match=r"^arm is not possible in state ARMED"):
         bench.controller.arm(source=WHO)
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
+
+
+def test_stop_estop_and_every_step_of_a_reset_are_recorded_with_their_source(
+    bench: ScriptedNode, config: MillConfig
+) -> None:
+    bench.armed(WHO)
+    bench.controller.stop(source=WHO)
+    event = bench.last_event(EventKind.COMMAND)
+    assert (event.source, event.data["command"]) == (WHO, "STOP")
+
+    bench.controller.estop(source=WHO)
+    [estop] = [e for e in bench.events if e.kind is EventKind.COMMAND and e.message == "E-STOP"]
+    assert estop.source == WHO
+    assert bench.last_event(EventKind.TRIP).source == WHO  # then the trip's own STOP, by the interlock
+
+    bench.run(2.0)  # the node silent: its telemetry goes stale
+    with pytest.raises(CommandRefused, match=r"^reset refused: .*stale"):
+        bench.controller.reset(source=WHO)
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
+    bench.alive(NodeState.FAULT, rotary_rpm=50.0)
+    bench.run(0.05)
+    with pytest.raises(CommandRefused, match=r"^reset refused: drives not at standstill"):
+        bench.controller.reset(source=WHO)
+    assert bench.last_event(EventKind.REFUSAL).source == WHO
+
+    bench.run(0.2, state=NodeState.FAULT)
+    bench.controller.reset(source=WHO)
+    requested, sent = [e for e in bench.events if e.kind is EventKind.COMMAND][-2:]
+    assert (requested.source, requested.message) == (WHO, "reset requested")
+    assert (sent.source, sent.data["command"]) == (WHO, "RESET")  # sent on the operator's behalf
+    bench.run(config.interlock.command_confirm_s + 0.5, state=NodeState.FAULT)  # the node never completes it
+    refusal = bench.last_event(EventKind.REFUSAL)
+    assert refusal.message.startswith("reset did not complete") and refusal.source == WHO
 
 
 def test_disarm_after_a_finished_ramp_to_a_speed_is_refused_and_recorded(bench: ScriptedNode) -> None:
