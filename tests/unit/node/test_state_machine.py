@@ -187,6 +187,33 @@ def test_safety_3_bad_crc_is_discarded_and_persistent_errors_fault_the_link(benc
     assert node.first_fault is FaultCode.E2E_LINK
 
 
+def test_a_command_with_a_bad_crc_is_refused_as_e2e_and_not_acted_on(bench: Bench) -> None:
+    node = bench.node
+    bench.arm()
+    frame = bench.codec.encode(Command(CommandCode.DISARM), bench.counters[Command].next())
+    data = bytearray(frame.data)
+    data[-1] ^= 0x01  # the CRC byte: it no longer matches the data
+    bench.ctl_bus.send(can.Message(arbitration_id=frame.arbitration_id, data=bytes(data), is_extended_id=False))
+    bench.step(0.1)
+    assert node.last_refusal is RefusalCode.E2E
+    assert node.state is NodeState.ARMED  # the DISARM was not taken
+    assert bench.latest(NodeStatus).last_refusal is RefusalCode.E2E  # and the node says why
+
+
+def test_a_frame_that_does_not_decode_is_counted_named_and_the_node_goes_on(bench: Bench) -> None:
+    node = bench.node
+    bench.arm()
+    command_id = bench.codec.encode(Command(CommandCode.DISARM), 0).arbitration_id
+    bench.ctl_bus.send(can.Message(arbitration_id=command_id, data=b"\x01", is_extended_id=False))  # 1 byte
+    bench.step(0.1)
+    assert node.reader.counts.malformed == 1
+    assert f"0x{command_id:03X}" in node.reader.counts.last_error
+    assert node.state is NodeState.ARMED
+    bench.command(CommandCode.DISARM)  # the frames after it are still taken
+    bench.step(0.1)
+    assert node.state is NodeState.DISABLED
+
+
 def test_safety_8_fault_latches_and_reset_needs_standstill_fresh_and_causes_cleared(bench: Bench) -> None:
     node = bench.node
     bench.run_at(60.0, 300.0)
