@@ -9,7 +9,7 @@ import pytest
 
 from millctl.config import MillConfig
 from millctl.controller import CommandRefused, ControllerState, EventKind
-from millctl.protocol import Command, CommandCode, EStop, NodeState
+from millctl.protocol import Command, CommandCode, EStop, FurnaceTelemetry, NodeState, NodeStatus
 from millctl.safety import InterlockRefused
 from tests.unit.controller.bench import ScriptedNode
 
@@ -86,14 +86,41 @@ def test_stopping_has_a_deadline(bench: ScriptedNode) -> None:
     bench.run(0.4, state=NodeState.STOPPING)
     assert bench.controller.state is S.TRIPPED
     assert "controlled stop not complete by its deadline" in bench.controller.trip_cause
+    assert "node STOPPING, measured 0.0/0.0 rpm" in bench.controller.trip_cause  # what the operator needs to see
     assert any(d.kind is EStop for _, d in bench.sent)
+
+
+def test_a_stop_deadline_passed_before_any_drive_telemetry_says_the_speeds_are_unknown(config: MillConfig) -> None:
+    # a start-up grace longer than the stop's bound: the deadline comes before the silent stream goes stale
+    patient = config.model_copy(update={"interlock": config.interlock.model_copy(update={"startup_grace_s": 10.0})})
+    bench = ScriptedNode(patient)
+    try:
+
+        def node_says(state: NodeState, seconds: float) -> None:  # status and furnace, never DriveTelemetry
+            for _ in range(round(seconds / 0.05)):
+                bench.say(NodeStatus(state))
+                bench.say(FurnaceTelemetry(25.0, 25.0, 0.0, False))
+                bench.run(0.05)
+
+        node_says(NodeState.DISABLED, 0.2)
+        bench.controller.arm()
+        node_says(NodeState.ARMED, 0.2)
+        bench.controller.stop()
+        node_says(NodeState.STOPPING, bench.controller.expectation.stop_bound_s + 0.3)
+        assert bench.controller.measured is None
+        assert bench.controller.state is S.TRIPPED
+        assert "controlled stop not complete by its deadline" in bench.controller.trip_cause
+        assert "node STOPPING, measured unknown" in bench.controller.trip_cause
+    finally:
+        bench.close()
 
 
 def test_a_drive_that_does_not_slow_down_in_stopping_is_an_estop(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.stop()
-    bench.run(bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0,
-              vibration_rpm=400.0)
+    bench.run(
+        bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0, vibration_rpm=400.0
+    )
     assert bench.controller.state is S.TRIPPED
     assert "stop ceiling" in bench.controller.trip_cause and "E-stop" in bench.controller.trip_cause
 
@@ -164,8 +191,9 @@ def test_an_e2e_faulted_node_link_trips(bench: ScriptedNode, config: MillConfig)
 def test_every_escalation_is_recorded(bench: ScriptedNode) -> None:
     running(bench)
     bench.controller.stop()
-    bench.run(bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0,
-              vibration_rpm=400.0)
+    bench.run(
+        bench.controller.expectation.stop_bound_s + 0.5, state=NodeState.STOPPING, rotary_rpm=100.0, vibration_rpm=400.0
+    )
     trips = [e for e in bench.events if e.kind is EventKind.TRIP]
     assert trips and trips[0].message.startswith("E-stop:")
 

@@ -65,3 +65,23 @@ def test_a_node_whose_drive_telemetry_never_comes_trips_after_the_start_up_grace
     assert bench.controller.measured is None
     assert bench.controller.state is ControllerState.TRIPPED
     assert "DriveTelemetry stale: never received" in bench.controller.trip_cause
+
+
+def test_a_node_heard_again_running_on_the_setpoint_a_stop_overtook_holds_the_stop(config: MillConfig) -> None:
+    # staleness short and the STOP's bound long, so that the node is lost and heard again inside that bound
+    interlock = config.interlock.model_copy(update={"stale_periods": 2.0, "min_stale_s": 0.3, "command_confirm_s": 2.0})
+    bench = ScriptedNode(config.model_copy(update={"interlock": interlock}))
+    try:
+        bench.armed()
+        bench.controller.set_speeds(10.0, 100.0)
+        bench.run(0.15, state=NodeState.ARMED)  # a moving setpoint sent, not yet taken
+        bench.controller.stop()
+        bench.run(0.5)  # the node silent: every stream stale, the node's history forgotten
+        assert bench.controller.state is ControllerState.TRIPPED
+        heard = len(bench.events)
+        bench.run(0.1, state=NodeState.RUNNING, rotary_rpm=1.0, vibration_rpm=10.0)
+        [held] = [e for e in bench.events[heard:] if e.message.startswith("node RUNNING")]
+        assert "after the STOP, on the setpoint sent before it" in held.message and held.source == "controller"
+        assert "did not command" not in bench.controller.trip_cause  # not taken for an uncommanded run
+    finally:
+        bench.close()
