@@ -19,6 +19,7 @@ import json
 import math
 import os
 import re
+import secrets
 import signal
 import threading
 import time
@@ -431,6 +432,31 @@ def wait_for(condition: Callable[[], T | None], timeout_s: float, what: str | Ca
         time.sleep(POLL_S * bound_scale())
 
 
+NODE_SEED_ENV = "MILLCTL_NODE_SEED"
+"""Environment variable that fixes the node's seed (to replay a run: its seed is printed as each node starts)."""
+
+
+def node_seed() -> int:
+    """The seed of a scenario's node (``--seed``): ``MILLCTL_NODE_SEED`` if set, else a fresh one for each node.
+
+    The seed drives the node's injected faults (which frames ``TX_LOSS`` drops, which bit ``TX_CORRUPT`` flips)
+    and its sensor noise. With one fixed seed every run replays the same stretch of draws: the 20 % loss phase
+    of the frame-loss scenario starts after the 1 % phase, ~170-230 draws in, and with the node's default seed
+    draws 200-300 are 32 % under 0.2. That stretch, not the VM, gave the bursty "extra" loss of the
+    vcan runs, and one E2E sequence trip (docs/operations.md, "Fault seeds").
+    """
+    text = os.environ.get(NODE_SEED_ENV, "").strip()
+    if not text:
+        return secrets.randbelow(2**31)
+    try:
+        seed = int(text)
+    except ValueError:
+        raise ValueError(f"{NODE_SEED_ENV}={text!r} is not an integer seed (unset it for fresh seeds)") from None
+    if seed < 0:
+        raise ValueError(f"{NODE_SEED_ENV}={seed} is negative; numpy seeds are integers ≥ 0")
+    return seed
+
+
 class Mill:
     """The controller service and the node as separate processes (or the service alone on ``virtual``).
 
@@ -456,11 +482,15 @@ class Mill:
 
     # -- processes
     def start_node(self) -> subprocess.Popen[bytes]:
-        """Start ``python -m firmware_sim --fault-injection`` on the transport."""
+        """Start ``python -m firmware_sim --fault-injection --seed N`` on the transport (N: :func:`node_seed`).
+
+        The seed is printed, so that a failing run's output says how to replay its faults.
+        """
         assert self.separate, "on virtual the node runs inside the service"
-        self.node = self.spawn(
-            ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"], realtime="node"
-        )
+        seed = node_seed()
+        print(f"node seed {seed} (replay: {NODE_SEED_ENV}={seed})")
+        argv = ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"]
+        self.node = self.spawn([*argv, "--seed", str(seed)], realtime="node")
         return self.node
 
     def start_service(self) -> subprocess.Popen[bytes]:
@@ -576,6 +606,7 @@ def mill_on(transport: Transport, spawn: Spawner, directory: Path, *, dilate_dri
 
 
 __all__ = [
+    "NODE_SEED_ENV",
     "SCHEDULING_ALLOWANCE_S",
     "STANDSTILL_RPM",
     "Bounds",
@@ -588,6 +619,7 @@ __all__ = [
     "is_status",
     "load_scale",
     "mill_on",
+    "node_seed",
     "report_timing",
     "upper_bound",
     "vm_scaled",
