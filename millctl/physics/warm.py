@@ -1,0 +1,58 @@
+"""Compile every numba kernel of the physics once, into numba's cache: ``python -m millctl.physics.warm``.
+
+A kernel compiles on its first call with a given signature, and numba keeps the result in
+``__pycache__`` keyed by the source file and the CPU. On a fresh clone nothing is cached: the first
+test, node or study to call a kernel compiles it (seconds of CPU each; ~50 s for the lot on the CI
+machine), inside its own time budget. ``.ci/setup`` runs this once instead, so that the unit tier,
+the hil nodes and the benchmarks load what is compiled. With the cache current it takes about a second.
+
+Each call below is the first call of a public entry point with the argument types its callers use:
+the batch events (:func:`.batch.first_impacts`, one rod and all), the per-scene methods the CLI and
+the benchmark compare (:func:`.methods.first_impact`, ``exact`` with and without a tolerance, and
+``legacy-compiled``), the detachment times (:func:`.kernels.detachment_times`), and the node's
+revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from millctl.config import load_config
+from millctl.config.loader import packaged_file
+from millctl.physics import kernels
+from millctl.physics.batch import SceneBatch, first_impacts
+from millctl.physics.methods import first_impact
+from millctl.physics.model import MillModel, Scene
+from millctl.physics.telemetry import revolution_summary
+
+OMEGA_R_RAD_S = 10.0
+"""The rotary speed of the warm-up scenes (rad/s): inside every shipped envelope, the rods detach."""
+OMEGA_V_RAD_S = 80.0
+"""The vibration speed of the warm-up scenes (rad/s)."""
+
+
+def warm() -> None:
+    """Call every compiled entry point once with each signature in use (compiling what is not cached)."""
+    model = MillModel.from_config(load_config(packaged_file("mill.toml")).config)
+    batch = SceneBatch.broadcast(model, omega_r_rad_s=OMEGA_R_RAD_S, omega_v_rad_s=OMEGA_V_RAD_S)
+    for rods in ("one", "all"):
+        first_impacts(batch, rods=rods)
+    scene = Scene(model, OMEGA_R_RAD_S, OMEGA_V_RAD_S)
+    first_impact(scene, "exact")
+    first_impact(scene, "exact", tol=1e-9)
+    first_impact(scene, "legacy-compiled", dt=1e-3)
+    kernels.detachment_times(kernels.scene_row(scene), 5.0)
+    revolution_summary(model, OMEGA_R_RAD_S, OMEGA_V_RAD_S)
+
+
+def main() -> int:
+    """Warm the cache and say how long it took (stderr)."""
+    started = time.perf_counter()
+    warm()
+    sys.stderr.write(f"millctl.physics.warm: kernels ready in {time.perf_counter() - started:.1f} s\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
