@@ -30,7 +30,9 @@ from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
     pytest_collection_modifyitems,
+    pytest_collectreport,
     pytest_make_collect_report,
+    pytest_runtest_logreport,
     pytest_runtest_makereport,
     pytest_sessionfinish,
     pytest_terminal_summary,
@@ -40,7 +42,9 @@ from tests.support.tiers import (
 __all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
     "pytest_addoption",
     "pytest_collection_modifyitems",
+    "pytest_collectreport",
     "pytest_make_collect_report",
+    "pytest_runtest_logreport",
     "pytest_runtest_makereport",
     "pytest_sessionfinish",
     "pytest_terminal_summary",

@@ -22,6 +22,10 @@ At the end the tier prints its closing line,
 appends it to the file named by ``$MILLCTL_TIER_SUMMARY`` (if set) for
 ``.ci/test`` and ``.ci/run`` to print together.
 
+With ``$MILLCTL_FAILURES_LOG`` set, each failure and error is appended to that file as it
+happens, with its traceback (the VM's run, ``tests/vm/guest``, may be stopped by its timeout
+before pytest prints its summary: the log still says what failed, and why).
+
 Under pytest-xdist (``-n 2``, the unit tier) the workers collect and run the
 tests and the controller only counts their reports: a worker's skip is turned
 into a failure where it happens (its report reaches the controller as failed),
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import os
 import re
+import time
 from collections.abc import Generator
 from pathlib import Path
 from typing import Any
@@ -41,6 +46,8 @@ import pytest
 from _pytest.reports import CollectReport, TestReport
 
 SUMMARY_ENV = "MILLCTL_TIER_SUMMARY"
+FAILURES_ENV = "MILLCTL_FAILURES_LOG"
+"""The file each failure is appended to as it happens (tests/vm/guest sets it in the VM)."""
 COUNTED = ("passed", "failed", "error", "skipped", "deselected", "xfailed", "xpassed")
 DESELECTED_KEY = "millctl_deselected"
 """The key of a pytest-xdist worker's ``workeroutput`` that carries how many tests it deselected."""
@@ -121,6 +128,26 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if dropped:
         config.hook.pytest_deselected(items=dropped)
         items[:] = kept
+
+
+def pytest_runtest_logreport(report: TestReport) -> None:
+    """Append a failed setup, call or teardown to ``$MILLCTL_FAILURES_LOG`` at once."""
+    _log_failure(report, report.when)
+
+
+def pytest_collectreport(report: CollectReport) -> None:
+    """Append a collection error to ``$MILLCTL_FAILURES_LOG`` at once."""
+    _log_failure(report, "collection")
+
+
+def _log_failure(report: TestReport | CollectReport, when: str | None) -> None:
+    path = os.environ.get(FAILURES_ENV)
+    if not path or not report.failed or os.environ.get("PYTEST_XDIST_WORKER"):  # the controller logs workers' reports
+        return
+    stamp = time.strftime("%H:%M:%S")
+    with Path(path).open("a", encoding="utf-8") as out:
+        out.write(f"=== {report.nodeid} ({when}, {stamp})\n{report.longreprtext}\n")
+        out.flush()
 
 
 def _is_xdist_worker(config: pytest.Config) -> bool:

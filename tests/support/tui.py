@@ -28,8 +28,11 @@ __all__ = ["Service", "start_fault_service", "start_service", "until"]
 def start_fault_service(directory: Path) -> Service:
     """Start ``millctl serve --fault-injection`` in ``directory``: faults are injected through ``/v1/sim/faults``."""
     config = write_config(directory)
-    return start_service(directory, module_args=["millctl", "--config", str(config), "serve", "--fault-injection"],
-                         what="millctl serve --fault-injection")
+    return start_service(
+        directory,
+        module_args=["millctl", "--config", str(config), "serve", "--fault-injection"],
+        what="millctl serve --fault-injection",
+    )
 
 
 @pytest.fixture

@@ -14,8 +14,9 @@ REPO = Path(__file__).resolve().parents[3]
 
 CONFTEST = """
 from tests.support.tiers import (
-    pytest_addoption, pytest_collection_modifyitems, pytest_make_collect_report,
-    pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary, pytest_testnodedown,
+    pytest_addoption, pytest_collection_modifyitems, pytest_collectreport, pytest_make_collect_report,
+    pytest_runtest_logreport, pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary,
+    pytest_testnodedown,
 )
 from pathlib import Path
 
@@ -64,8 +65,9 @@ def run(pytester: pytest.Pytester, *args: str) -> pytest.RunResult:
 
 @pytest.fixture(autouse=True)
 def no_outer_summary(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The inner sessions must not write into the summary of the tier running these tests."""
+    """The inner sessions must not write into the summary or the failure log of the tier running these tests."""
     monkeypatch.delenv("MILLCTL_TIER_SUMMARY", raising=False)
+    monkeypatch.delenv("MILLCTL_FAILURES_LOG", raising=False)
 
 
 @pytest.fixture
@@ -92,9 +94,7 @@ def test_a_skip_in_a_tier_fails_and_names_the_tier_and_the_reason(suite: pytest.
 
 
 def test_an_accepted_skip_passes_and_is_still_counted(suite: pytest.Pytester) -> None:
-    result = run(
-        suite, "--tier", "t", "--may-skip", "inside one process", "--may-skip", "private network namespace"
-    )
+    result = run(suite, "--tier", "t", "--may-skip", "inside one process", "--may-skip", "private network namespace")
     assert result.ret == 0
     result.assert_outcomes(passed=2, skipped=2, xfailed=1)
     result.stdout.fnmatch_lines(["*accepted skip (t): virtual frames stay inside one process*"])
@@ -141,3 +141,43 @@ def test_under_xdist_the_controller_alone_writes_the_closing_line_with_the_worke
     # call-time skip a failure, udp_multicast's setup-time skip an error
     expected = "vcan: 0 passed, 1 failed, 1 errors, 0 skipped (2 deselected, 1 xfailed) [pytest exit 1]"
     assert summary.read_text().splitlines() == [expected]
+
+
+FAILING = """
+import pytest
+
+@pytest.fixture
+def broken():
+    raise RuntimeError("the service never came up")
+
+def test_fine():
+    pass
+
+def test_wrong():
+    assert 1 + 1 == 3, "arithmetic"
+
+def test_needs(broken):
+    pass
+"""
+
+
+def test_each_failure_is_logged_with_its_traceback_as_it_happens(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The VM's run can be cut by its timeout before pytest's summary: the log already holds every failure."""
+    log = pytester.path / "failures.log"
+    monkeypatch.setenv("MILLCTL_FAILURES_LOG", str(log))
+    pytester.makeconftest(CONFTEST)
+    pytester.makepyfile(test_failing=FAILING, test_broken_import="import no_such_module_anywhere\n")
+    result = run(pytester, "--tier", "vcan", "--continue-on-collection-errors")
+    assert result.ret == 1
+    entries = log.read_text().split("=== ")[1:]
+    heads = [entry.splitlines()[0].rsplit(",", 1)[0] for entry in entries]
+    assert heads == [
+        "test_broken_import.py (collection",
+        "test_failing.py::test_wrong (call",
+        "test_failing.py::test_needs (setup",
+    ]
+    assert "No module named 'no_such_module_anywhere'" in entries[0]
+    assert "AssertionError: arithmetic" in entries[1]
+    assert "RuntimeError: the service never came up" in entries[2]

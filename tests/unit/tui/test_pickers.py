@@ -18,6 +18,7 @@ from millctl.service.recipe import RecipeSlot
 from millctl.tui import MillApp
 from millctl.tui.drill import DrillRequest, FaultDrillModal
 from millctl.tui.recipes import RecipePicker, recipe_files
+from tests.support.tui import until
 from tests.unit.tui import frozen
 from tests.unit.tui.test_snapshot import SIZE, feeder
 
@@ -51,11 +52,7 @@ def opened(app: MillApp, screen: Any, done: Callable[[], bool]) -> Callable[[Pil
     async def run(pilot: Pilot[None]) -> None:
         await feeder(app)(pilot)
         app.push_screen(screen)
-        for _ in range(100):
-            await pilot.pause(0.02)
-            if done():
-                break
-        assert done()
+        await until(pilot, done, "the picker's checks")
 
     return run
 
@@ -72,8 +69,7 @@ async def test_only_a_recipe_that_passes_its_preflight_is_run() -> None:
     async with app.run_test(size=SIZE) as pilot:
         picker = RecipePicker(recipe_files(FOLDERS), preflight)
         app.push_screen(picker, chosen.append)
-        while len(picker.checks) < 4:
-            await pilot.pause(0.02)
+        await until(pilot, lambda: len(picker.checks) == 4, "the preflight of the 4 recipes")
         checks = {p.name: c for p, c in picker.checks.items()}
         assert checks["demo.toml"].ok and checks["demo.toml"].steps == 4
         too_fast = checks["too-fast.toml"]
@@ -103,8 +99,7 @@ async def test_a_typed_recipe_file_is_added_and_checked(tmp_path: Path) -> None:
         assert "no recipes" in str(picker.query_one("#details", Static).render())
         picker.query_one("#path", Input).value = str(recipe)
         await pilot.press("enter")
-        while recipe not in picker.checks:
-            await pilot.pause(0.02)
+        await until(pilot, lambda: recipe in picker.checks, f"the preflight of {recipe.name}")
         assert picker.checks[recipe].ok and picker.files == [recipe]
 
 

@@ -20,6 +20,7 @@ from millctl.tui import MillApp
 from millctl.tui.envelope import EnvelopeScreen
 from millctl.tui.legible import MIN_CONTRAST, contrast
 from millctl.tui.modals import SetpointsModal, SetRequest
+from tests.support.tui import until
 from tests.unit.tui import frozen
 
 SIZE = (120, 40)
@@ -172,10 +173,10 @@ def test_set_dialog_with_ramp_rates_and_the_linear_path(snap_compare: Any, utc: 
         for field in modal.query(Input):  # a blinking cursor would be caught in either phase
             field.cursor_blink = False
         verdict = modal.query_one("#verdict", Static)
-        for _ in range(500):  # until the check of the last field's change has answered
-            await pilot.pause(0.02)
-            if "margin" in str(verdict.render()) and not modal.workers:
-                break
+        await pilot.pause(0.02)  # the last field's change reaches its handler (which starts the check)
+        await until(  # the check of the last field's change has answered
+            pilot, lambda: "margin" in str(verdict.render()) and not modal.workers, "the set dialog's verdict"
+        )
         assert "inside the envelope" in str(verdict.render())
 
     assert snap_compare(app, terminal_size=SIZE, run_before=run)
