@@ -167,6 +167,7 @@ def test_each_failure_is_logged_with_its_traceback_as_it_happens(
     """The VM's run can be cut by its timeout before pytest's summary: the log already holds every failure."""
     log = pytester.path / "failures.log"
     monkeypatch.setenv("MILLCTL_FAILURES_LOG", str(log))
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # the inner session is no worker, wherever this runs
     pytester.makeconftest(CONFTEST)
     pytester.makepyfile(test_failing=FAILING, test_broken_import="import no_such_module_anywhere\n")
     result = run(pytester, "--tier", "vcan", "--continue-on-collection-errors")
