@@ -18,8 +18,7 @@ from __future__ import annotations
 import sys
 import time
 
-from millctl.config import load_config
-from millctl.config.loader import packaged_file
+from millctl.config import default_config
 from millctl.physics import kernels
 from millctl.physics.batch import SceneBatch, first_impacts
 from millctl.physics.methods import first_impact
@@ -34,7 +33,7 @@ OMEGA_V_RAD_S = 80.0
 
 def warm() -> None:
     """Call every compiled entry point once with each signature in use (compiling what is not cached)."""
-    model = MillModel.from_config(load_config(packaged_file("mill.toml")).config)
+    model = MillModel.from_config(default_config())
     batch = SceneBatch.broadcast(model, omega_r_rad_s=OMEGA_R_RAD_S, omega_v_rad_s=OMEGA_V_RAD_S)
     for rods in ("one", "all"):
         first_impacts(batch, rods=rods)
