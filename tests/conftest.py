@@ -29,10 +29,13 @@ from tests.support import examples, mutation_tests, timeouts, virtual_bus
 from tests.support.realtime import take_over
 from tests.support.tiers import (
     pytest_addoption,
+    pytest_collection_finish,
     pytest_collection_modifyitems,
     pytest_collectreport,
     pytest_make_collect_report,
+    pytest_runtest_logfinish,
     pytest_runtest_logreport,
+    pytest_runtest_logstart,
     pytest_runtest_makereport,
     pytest_sessionfinish,
     pytest_terminal_summary,
@@ -41,10 +44,13 @@ from tests.support.tiers import (
 
 __all__ = [  # the CI tiers' plugin: its hooks act when pytest finds them here
     "pytest_addoption",
+    "pytest_collection_finish",
     "pytest_collection_modifyitems",
     "pytest_collectreport",
     "pytest_make_collect_report",
+    "pytest_runtest_logfinish",
     "pytest_runtest_logreport",
+    "pytest_runtest_logstart",
     "pytest_runtest_makereport",
     "pytest_sessionfinish",
     "pytest_terminal_summary",

@@ -126,10 +126,11 @@ def _workload() -> None:
 def calibration_s(repeats: int = 7, clock: str = "wall") -> float:
     """The workload's time (s): the fastest of ``repeats`` runs by CPU time, or their median by wall time.
 
-    ``clock="cpu"`` is the host's reference: this process's CPU time, the fastest run (what the host's
-    load cannot inflate). ``clock="wall"`` is the VM's measurement: wall time, which is what its waits
-    are made of, and the median run, so that the figure is the VM's typical speed on the host as it is
-    loaded now, not its best moment.
+    ``clock="cpu"`` is the host's reference: this process's CPU time, the fastest run (meant to be what
+    the host's load cannot inflate; beside a busy VM it still varies 3.5-5.7 ms: tests/vm/README.md,
+    "Speed"). ``clock="wall"`` is the VM's measurement: wall time, which is what its waits are made of,
+    and the median run, so that the figure is the VM's typical speed on the host as it is loaded now,
+    not its best moment.
     """
     if clock not in ("cpu", "wall"):
         raise ValueError(f"the calibration clock must be 'cpu' or 'wall', got {clock!r}")

@@ -24,7 +24,10 @@ appends it to the file named by ``$MILLCTL_TIER_SUMMARY`` (if set) for
 
 With ``$MILLCTL_FAILURES_LOG`` set, each failure and error is appended to that file as it
 happens, with its traceback (the VM's run, ``tests/vm/guest``, may be stopped by its timeout
-before pytest prints its summary: the log still says what failed, and why).
+before pytest prints its summary: the log still says what failed, and why). With
+``$MILLCTL_PROGRESS_LOG`` set, the number of tests collected, each test's start and each test's
+outcome go to that file as they happen, so that a cut run can say how far it got and what was
+running (``tests/support/progress.py`` reads it).
 
 Under pytest-xdist (``-n 2``, the unit tier) the workers collect and run the
 tests and the controller only counts their reports: a worker's skip is turned
@@ -48,6 +51,8 @@ from _pytest.reports import CollectReport, TestReport
 SUMMARY_ENV = "MILLCTL_TIER_SUMMARY"
 FAILURES_ENV = "MILLCTL_FAILURES_LOG"
 """The file each failure is appended to as it happens (tests/vm/guest sets it in the VM)."""
+PROGRESS_ENV = "MILLCTL_PROGRESS_LOG"
+"""The file each test's start and outcome are appended to as they happen (tests/vm/guest sets it in the VM)."""
 COUNTED = ("passed", "failed", "error", "skipped", "deselected", "xfailed", "xpassed")
 DESELECTED_KEY = "millctl_deselected"
 """The key of a pytest-xdist worker's ``workeroutput`` that carries how many tests it deselected."""
@@ -131,8 +136,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def pytest_runtest_logreport(report: TestReport) -> None:
-    """Append a failed setup, call or teardown to ``$MILLCTL_FAILURES_LOG`` at once."""
+    """Append a failed setup, call or teardown to ``$MILLCTL_FAILURES_LOG`` at once; count it for the progress log."""
     _log_failure(report, report.when)
+    _record_outcome(report)
 
 
 def pytest_collectreport(report: CollectReport) -> None:
@@ -148,6 +154,56 @@ def _log_failure(report: TestReport | CollectReport, when: str | None) -> None:
     with Path(path).open("a", encoding="utf-8") as out:
         out.write(f"=== {report.nodeid} ({when}, {stamp})\n{report.longreprtext}\n")
         out.flush()
+
+
+# --- progress: how far a run got (read by tests/support/progress.py when the run is cut) ----------------------
+
+_outcome_so_far: dict[str, str] = {}
+"""Each running test's outcome from the reports of its phases so far (setup, call, teardown)."""
+
+
+def _append_progress(line: str) -> None:
+    path = os.environ.get(PROGRESS_ENV)
+    if not path or os.environ.get("PYTEST_XDIST_WORKER"):  # the controller logs workers' tests
+        return
+    with Path(path).open("a", encoding="utf-8") as out:
+        out.write(line + "\n")
+        out.flush()
+
+
+def outcome_after(earlier: str, report: TestReport) -> str:
+    """A test's outcome after one more phase's report, counted as pytest counts it: a failed setup or
+    teardown is an ``error`` and a failed call ``failed`` (either one stays), a skip ``skipped``, an
+    expected failure ``xfailed`` or ``xpassed``, else ``passed``."""
+    if earlier in ("failed", "error"):
+        return earlier
+    if report.failed:
+        return "failed" if report.when == "call" else "error"
+    expected_to_fail = hasattr(report, "wasxfail")
+    if report.skipped:
+        return "xfailed" if expected_to_fail else "skipped"
+    if report.when == "call" and expected_to_fail:
+        return "xpassed"
+    return earlier
+
+
+def _record_outcome(report: TestReport) -> None:
+    _outcome_so_far[report.nodeid] = outcome_after(_outcome_so_far.get(report.nodeid, "passed"), report)
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Note how many tests this run will run (after deselection) in ``$MILLCTL_PROGRESS_LOG``."""
+    _append_progress(f"collected {len(session.items)}")
+
+
+def pytest_runtest_logstart(nodeid: str, location: tuple[str, int | None, str]) -> None:
+    """Note a test's start in ``$MILLCTL_PROGRESS_LOG``: a cut run then names the test it was in."""
+    _append_progress(f"start {time.strftime('%H:%M:%S')} {nodeid}")
+
+
+def pytest_runtest_logfinish(nodeid: str, location: tuple[str, int | None, str]) -> None:
+    """Note a test's outcome in ``$MILLCTL_PROGRESS_LOG`` once all its phases have reported."""
+    _append_progress(f"{_outcome_so_far.pop(nodeid, 'passed')} {time.strftime('%H:%M:%S')} {nodeid}")
 
 
 def _is_xdist_worker(config: pytest.Config) -> bool:

@@ -14,9 +14,9 @@ REPO = Path(__file__).resolve().parents[3]
 
 CONFTEST = """
 from tests.support.tiers import (
-    pytest_addoption, pytest_collection_modifyitems, pytest_collectreport, pytest_make_collect_report,
-    pytest_runtest_logreport, pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary,
-    pytest_testnodedown,
+    pytest_addoption, pytest_collection_finish, pytest_collection_modifyitems, pytest_collectreport,
+    pytest_make_collect_report, pytest_runtest_logfinish, pytest_runtest_logreport, pytest_runtest_logstart,
+    pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary, pytest_testnodedown,
 )
 from pathlib import Path
 
@@ -65,9 +65,10 @@ def run(pytester: pytest.Pytester, *args: str) -> pytest.RunResult:
 
 @pytest.fixture(autouse=True)
 def no_outer_summary(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The inner sessions must not write into the summary or the failure log of the tier running these tests."""
+    """The inner sessions must not write into the summary, failure or progress log of the tier running these tests."""
     monkeypatch.delenv("MILLCTL_TIER_SUMMARY", raising=False)
     monkeypatch.delenv("MILLCTL_FAILURES_LOG", raising=False)
+    monkeypatch.delenv("MILLCTL_PROGRESS_LOG", raising=False)
 
 
 @pytest.fixture
@@ -182,3 +183,80 @@ def test_each_failure_is_logged_with_its_traceback_as_it_happens(
     assert "No module named 'no_such_module_anywhere'" in entries[0]
     assert "AssertionError: arithmetic" in entries[1]
     assert "RuntimeError: the service never came up" in entries[2]
+
+
+def progress_words(log: Path) -> list[str]:
+    """The progress log without its clock: ``collected N`` and ``WORD NODEID`` lines."""
+    lines = log.read_text().splitlines()
+    return [line if line.startswith("collected ") else " ".join(line.split(" ")[::2]) for line in lines]
+
+
+def test_each_tests_start_and_outcome_go_to_the_progress_log_as_they_happen(
+    suite: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    log = suite.path / "progress.log"
+    monkeypatch.setenv("MILLCTL_PROGRESS_LOG", str(log))
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # the inner session is no worker, wherever this runs
+    run(suite, "--tier", "hil-transport", "--may-skip", "inside one process", "--transports", "virtual,udp_multicast")
+    assert progress_words(log) == [
+        "collected 4",
+        "start test_suite.py::test_plain",
+        "passed test_suite.py::test_plain",
+        "start test_suite.py::test_on[virtual]",
+        "skipped test_suite.py::test_on[virtual]",
+        "start test_suite.py::test_on[udp_multicast]",
+        "error test_suite.py::test_on[udp_multicast]",
+        "start test_suite.py::test_known_defect",
+        "xfailed test_suite.py::test_known_defect",
+    ]
+    stamp = log.read_text().splitlines()[1].split(" ")[1]
+    assert len(stamp) == 8 and stamp[2] == stamp[5] == ":", stamp
+
+
+CUT = """
+import os
+
+def test_first():
+    pass
+
+def test_wrong():
+    assert 2 + 2 == 5
+
+def test_cut():
+    os._exit(3)  # the process ends here, as a VM stopped by its timeout does: no summary
+
+def test_never():
+    pass
+"""
+
+
+def test_a_run_cut_mid_test_leaves_a_log_that_says_how_far_it_got(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What tests/vm/run prints for the vcan tier when its VM is stopped before pytest's summary."""
+    log = pytester.path / "progress.log"
+    monkeypatch.setenv("MILLCTL_PROGRESS_LOG", str(log))
+    monkeypatch.setenv("PYTHONPATH", str(REPO))
+    monkeypatch.setenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", "1")
+    pytester.makeconftest(CONFTEST)
+    pytester.makepyfile(test_cut=CUT)
+    result = pytester.runpytest_subprocess("--tier", "vcan")
+    assert result.ret == 3
+    from tests.support.progress import cut_line, read_progress
+
+    line = cut_line("vcan", read_progress(log.read_text()), "the VM's timeout, 60 s")
+    assert line == (
+        "vcan: FAILED: cut (the VM's timeout, 60 s) after 2 of 4 cases: 1 passed, 1 failed, 0 errors, 0 skipped; "
+        "in test_cut.py::test_cut; 1 not started"
+    )
+
+
+def test_the_root_conftest_exports_every_hook_of_the_plugin() -> None:
+    """The plugin acts through tests/conftest.py, which imports its hooks by name: a hook left out does nothing."""
+    import tests.conftest
+    from tests.support import tiers
+
+    hooks = {name for name in vars(tiers) if name.startswith("pytest_")}
+    assert len(hooks) >= 12, sorted(hooks)
+    assert hooks - set(tests.conftest.__all__) == set()
+    assert all(getattr(tests.conftest, name) is getattr(tiers, name) for name in hooks)
