@@ -120,12 +120,25 @@ def test_an_unknown_calibration_clock_is_refused() -> None:
 def test_the_command_line_prints_the_reference_and_the_scale(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.004 if clock == "cpu" else 0.1)
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.006 if clock == "cpu" else 0.1)
     assert pace.main(["--reference"]) == 0
-    assert capsys.readouterr().out == "0.004000\n"
+    assert capsys.readouterr() == ("0.006000\n", "")
     assert pace.main(["--scale", "0.004"]) == 0
     assert capsys.readouterr().out == "25.00\n"
     assert pace.main([]) == 2
+
+
+def test_a_host_faster_than_the_slowest_passing_one_gives_that_ones_reference_and_says_so(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Run 4 of e77800c: the host measured 3.05 ms at a quiet moment, and its VM's scale read 46 instead of ~29."""
+    monkeypatch.setattr(pace, "calibration_s", lambda repeats=7, clock="wall": 0.00305 if clock == "cpu" else 0.1)
+    assert pace.host_reference_s() == 0.0048
+    assert pace.main(["--reference"]) == 0
+    out, err = capsys.readouterr()
+    assert out == "0.004800\n"
+    assert "0.003050 s of CPU" in err and "SLOWEST_PASSING_HOST_S" in err
+    assert round(pace.slowdown_against(float(out), 0.1412), 2) == 29.42
 
 
 def test_the_load_scale_is_measured_now_against_the_hosts_reference(monkeypatch: pytest.MonkeyPatch) -> None:
