@@ -236,6 +236,7 @@ def test_a_run_cut_mid_test_leaves_a_log_that_says_how_far_it_got(
     """What tests/vm/run prints for the vcan tier when its VM is stopped before pytest's summary."""
     log = pytester.path / "progress.log"
     monkeypatch.setenv("MILLCTL_PROGRESS_LOG", str(log))
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # the inner session is no worker, wherever this runs
     monkeypatch.setenv("PYTHONPATH", str(REPO))
     monkeypatch.setenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", "1")
     pytester.makeconftest(CONFTEST)
