@@ -144,6 +144,16 @@ def test_under_xdist_the_controller_alone_writes_the_closing_line_with_the_worke
     assert summary.read_text().splitlines() == [expected]
 
 
+def logged_session(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, env: str, **files: str) -> Path:
+    """An inner session of ``files`` whose log ``env`` names (returned); it is no xdist worker, wherever this runs."""
+    log = pytester.path / f"{env.lower()}.txt"
+    monkeypatch.setenv(env, str(log))
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)
+    pytester.makeconftest(CONFTEST)
+    pytester.makepyfile(**files)
+    return log
+
+
 FAILING = """
 import pytest
 
@@ -166,11 +176,13 @@ def test_each_failure_is_logged_with_its_traceback_as_it_happens(
     pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The VM's run can be cut by its timeout before pytest's summary: the log already holds every failure."""
-    log = pytester.path / "failures.log"
-    monkeypatch.setenv("MILLCTL_FAILURES_LOG", str(log))
-    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # the inner session is no worker, wherever this runs
-    pytester.makeconftest(CONFTEST)
-    pytester.makepyfile(test_failing=FAILING, test_broken_import="import no_such_module_anywhere\n")
+    log = logged_session(
+        pytester,
+        monkeypatch,
+        "MILLCTL_FAILURES_LOG",
+        test_failing=FAILING,
+        test_broken_import="import no_such_module_anywhere\n",
+    )
     result = run(pytester, "--tier", "vcan", "--continue-on-collection-errors")
     assert result.ret == 1
     entries = log.read_text().split("=== ")[1:]
@@ -234,13 +246,9 @@ def test_a_run_cut_mid_test_leaves_a_log_that_says_how_far_it_got(
     pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """What tests/vm/run prints for the vcan tier when its VM is stopped before pytest's summary."""
-    log = pytester.path / "progress.log"
-    monkeypatch.setenv("MILLCTL_PROGRESS_LOG", str(log))
-    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # the inner session is no worker, wherever this runs
+    log = logged_session(pytester, monkeypatch, "MILLCTL_PROGRESS_LOG", test_cut=CUT)
     monkeypatch.setenv("PYTHONPATH", str(REPO))
     monkeypatch.setenv("PYTEST_DISABLE_PLUGIN_AUTOLOAD", "1")
-    pytester.makeconftest(CONFTEST)
-    pytester.makepyfile(test_cut=CUT)
     result = pytester.runpytest_subprocess("--tier", "vcan")
     assert result.ret == 3
     from tests.support.progress import cut_line, read_progress
