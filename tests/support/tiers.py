@@ -196,12 +196,12 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     _append_progress(f"collected {len(session.items)}")
 
 
-def pytest_runtest_logstart(nodeid: str, location: tuple[str, int | None, str]) -> None:
+def pytest_runtest_logstart(nodeid: str) -> None:
     """Note a test's start in ``$MILLCTL_PROGRESS_LOG``: a cut run then names the test it was in."""
     _append_progress(f"start {time.strftime('%H:%M:%S')} {nodeid}")
 
 
-def pytest_runtest_logfinish(nodeid: str, location: tuple[str, int | None, str]) -> None:
+def pytest_runtest_logfinish(nodeid: str) -> None:
     """Note a test's outcome in ``$MILLCTL_PROGRESS_LOG`` once all its phases have reported."""
     _append_progress(f"{_outcome_so_far.pop(nodeid, 'passed')} {time.strftime('%H:%M:%S')} {nodeid}")
 
