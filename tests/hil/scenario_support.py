@@ -54,6 +54,7 @@ from millctl.protocol import (
     default_codec,
     open_bus,
 )
+from millctl.protocol.e2e import COUNTER_MODULO, DEFAULT_MAX_DELTA
 from millctl.safety import Envelope
 from tests.hil.conftest import IN_VM
 from tests.support.pace import slowdown_now, time_scale
@@ -128,6 +129,11 @@ class Bounds:
     def node_reports_s(self) -> float:
         """From a frame on the bus to the node's NodeStatus reporting its effect: one tick, one status period."""
         return self.scaled(self.config.timing.node_tick_s + self._period(NodeStatus))
+
+    @property
+    def controller_reacts_s(self) -> float:
+        """A frame on the bus that trips the controller → its STOP on the bus: one controller tick."""
+        return self.scaled(self.config.timing.controller_tick_s)
 
     @property
     def watchdog_s(self) -> float:
@@ -332,6 +338,33 @@ def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
     return lambda seen: seen.decoded is not None and seen.decoded.kind is kind
 
 
+def sequence_limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
+    """When the frames ``seen`` on one identifier (in bus order) first give a sequence score of ``limit`` (s).
+
+    The score as docs/safety.md defines it for one sender per identifier (SAFETY 17): +1 for a counter
+    repeated from the last accepted one or more than ``DEFAULT_MAX_DELTA`` past it, and −1 only after
+    ``decay_frames`` fresh frames in a row. None while the frames do not reach the limit.
+    """
+    last: int | None = None
+    score = fresh_run = 0
+    for s in seen:
+        counter = s.decoded.counter if s.decoded is not None and s.decoded.crc_ok else None
+        if counter is None:
+            continue
+        delta = None if last is None else (counter - last) % COUNTER_MODULO
+        if delta == 0 or (delta is not None and delta > DEFAULT_MAX_DELTA):
+            score, fresh_run = score + 1, 0
+            if score >= limit:
+                return s.t
+        elif score > 0:
+            fresh_run += 1
+            if fresh_run >= decay_frames:
+                score, fresh_run = score - 1, 0
+        if delta != 0:
+            last = counter
+    return None
+
+
 class Probe:
     """The third bus: a capture thread that timestamps every frame, and a sender (faults, rogue frames, E-stop).
 
@@ -393,8 +426,22 @@ class Probe:
             if found:
                 return found[0]
             if time.monotonic() > deadline:
-                pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s")
+                pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s; {self.describe_since(after)}")
             time.sleep(POLL_S * bound_scale())
+
+    def describe_since(self, after: float) -> str:
+        """What the probe captured after ``after``: how many frames, and the node's state in its newest NodeStatus."""
+        seen = self.frames(after)
+        statuses = [s for s in seen if isinstance(s.message, NodeStatus)]
+        if not statuses:
+            return f"it captured {len(seen)} frames since, no NodeStatus among them"
+        newest = statuses[-1]
+        status = newest.of(NodeStatus)
+        return (
+            f"it captured {len(seen)} frames since, {len(statuses)} NodeStatus; the newest, at "
+            f"+{newest.t - after:.2f} s: {status.state.name}, first fault {FaultCode(status.first_fault).name}, "
+            f"fault bits {status.fault_bits!r}"
+        )
 
     def latest(self, kind: type[MillMessage]) -> Any:
         """The newest decoded message of ``kind`` (None before the first)."""
@@ -621,6 +668,7 @@ __all__ = [
     "mill_on",
     "node_seed",
     "report_timing",
+    "sequence_limit_reached_at",
     "upper_bound",
     "vm_scaled",
     "wait_for",

@@ -43,10 +43,12 @@ from tests.hil.scenario_support import (
     Probe,
     Seen,
     is_command,
+    is_kind,
     is_status,
     load_scale,
     mill_on,
     report_timing,
+    sequence_limit_reached_at,
     wait_for,
 )
 from tests.support.pace import cpu_share
@@ -237,12 +239,25 @@ def test_a_second_sender_on_the_nodes_frames_trips_the_controller(
     assert forged > 0 and forger.first_sent_t is not None
     tripped = m.wait_state("TRIPPED", 2.0)
     assert "second sender" in tripped["trip_cause"], tripped["trip_cause"]
-    # from the first forgery: e2e_error_limit genuine DriveTelemetry frames made REPEATED, one more period for a
-    # genuine frame the forger (another process reading the bus) answers too late, and a controller tick
-    periods = m.config.interlock.e2e_error_limit + 1
-    period_s = m.codec.cycle_time_s(DriveTelemetry) or 0.0
-    bound_s = m.bounds.scaled(periods * period_s + m.config.timing.controller_tick_s)
-    measured_s = stop.t - forger.first_sent_t
+    # The reaction is timed from the frame that completed the evidence, as the bus carried it: the forger is
+    # another process reading the bus, and how promptly it answers is the harness's speed, not the controller's
+    # (timed from its first forgery, the same trip read 0.153-0.183 s against 6 periods and a tick, 0.18 s).
+    interlock = m.config.interlock
+    evidence = [
+        sequence_limit_reached_at(
+            probe.frames(t_start, is_kind(kind)),
+            interlock.e2e_error_limit,
+            interlock.e2e_sequence_decay_frames,
+        )
+        for kind in (NodeStatus, DriveTelemetry)
+    ]
+    reached = [t for t in evidence if t is not None and t <= stop.t]
+    assert reached, (
+        f"the controller sent STOP at {stop.t - t_start:.3f} s with fewer than {interlock.e2e_error_limit} "
+        f"repeated or out-of-sequence counters on the bus on either identifier ({forged} frames forged)"
+    )
+    measured_s = stop.t - min(reached)
+    bound_s = m.bounds.controller_reacts_s
     report_timing(capsys, "trip_on_second_sender", transport.name, measured_s, bound_s)
     assert measured_s <= bound_s
     assert_stops_inside(m, probe, t_start)
