@@ -28,6 +28,7 @@ from millctl.protocol import (
     EStop,
     EStopSource,
     FaultCode,
+    FaultFlag,
     Heartbeat,
     MillMessage,
     NodeState,
@@ -79,7 +80,11 @@ def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple
 
 
 def wait_status(mill: Mill, probe: Probe, where: Callable[[Seen], bool], after: float, what: str) -> Seen:
-    return probe.wait_first(where, after, mill.timeout(3.0), what)
+    """The first frame after ``after`` matching ``where``; on timeout the failure shows the processes' output too."""
+    try:
+        return probe.wait_first(where, after, mill.timeout(3.0), what)
+    except pytest.fail.Exception as failed:
+        pytest.fail(f"{failed.msg}\n{mill._tail()}")
 
 
 def processes_alive(mill: Mill) -> None:
@@ -88,11 +93,28 @@ def processes_alive(mill: Mill) -> None:
         assert proc.poll() is None, f"the {name} exited ({proc.returncode}):\n{mill._tail()}"
 
 
-def estop_reaction(mill: Mill, probe: Probe, adversary: Adversary) -> float:
-    """Send an E-stop from the adversary; return the time until the node reports FAULT/ESTOP on the bus (s)."""
+def reports_estop(seen: Seen) -> bool:
+    """A NodeStatus with the E-stop latched: FAULT with the ESTOP bit, whichever fault came first (SAFETY 15)."""
+    m = seen.message
+    return isinstance(m, NodeStatus) and m.state is NodeState.FAULT and FaultFlag.ESTOP in m.fault_bits
+
+
+def estop_reaction(
+    mill: Mill, probe: Probe, adversary: Adversary, may_come_first: frozenset[FaultCode] = frozenset()
+) -> float:
+    """Send an E-stop from the adversary; return the time until the node reports it on the bus (s).
+
+    The node's first fault must be the E-stop, or one of ``may_come_first``; the controller's trip must name it.
+    """
     t_estop = adversary.send(adversary.forged(EStop(EStopSource.BUTTON)))
-    fault = wait_status(mill, probe, is_status(NodeState.FAULT, FaultCode.ESTOP), t_estop, "NodeStatus FAULT/ESTOP")
-    return fault.t - t_estop
+    seen = wait_status(mill, probe, reports_estop, t_estop, "NodeStatus FAULT with the ESTOP bit")
+    first = FaultCode(seen.of(NodeStatus).first_fault)
+    assert first in {FaultCode.ESTOP, *may_come_first}, (
+        f"the node latched {first.name} before the E-stop ({seen.of(NodeStatus)!r})\n{mill._tail()}"
+    )
+    cause = mill.wait_state("TRIPPED", 2.0)["trip_cause"]
+    assert first.name in cause, f"the node's first fault was {first.name}, the controller's trip cause {cause!r}"
+    return seen.t - t_estop
 
 
 def assert_stops_inside(mill: Mill, probe: Probe, after: float) -> None:
@@ -120,7 +142,6 @@ def test_estop_under_a_babbling_node(
     bound_s = m.bounds.node_reports_s
     report_timing(capsys, f"estop_under_babble_{babble_hz:.0f}hz", transport.name, measured_s, bound_s)
     assert measured_s <= bound_s
-    assert "ESTOP" in m.wait_state("TRIPPED", 2.0)["trip_cause"]
     assert_stops_inside(m, probe, t_babble)
 
 
@@ -132,11 +153,15 @@ def test_estop_inside_a_flood_on_0x001_at_the_buss_maximum_rate(
     # a loaded host times the CPU share a process gets. A flood the node's process cannot drain overflows its
     # socket's receive buffer, and the kernel drops datagrams, the E-stop among them: an artefact of emulating
     # CAN over UDP (on the wire, the E-stop wins arbitration). The E-stop's reaction bound stays physical.
+    # The E-stop has a queue of its own where the kernel filters (SocketCAN: millctl.protocol.factory), the
+    # controller's frames do not: a moment the node falls behind drops some, and the node may latch their loss
+    # (WATCHDOG, or E2E_LINK from the counter jumps) before the E-stop, as a flood on the wire that starves
+    # lower identifiers would. The E-stop must still be reported in time.
     rate_hz = MAX_FRAME_RATE_HZ / load_scale() * cpu_share()
     t_flood = time.monotonic()
     flood = adversary.flood(raw_frame(0x001, bytes(8), dlc=8), rate_hz)
     time.sleep(m.timeout(1.0))
-    measured_s = estop_reaction(m, probe, adversary)
+    measured_s = estop_reaction(m, probe, adversary, frozenset({FaultCode.WATCHDOG, FaultCode.E2E_LINK}))
     sent = flood.stop()
     flood_hz = sent / (time.monotonic() - t_flood)
     bound_s = m.bounds.node_reports_s
@@ -145,7 +170,6 @@ def test_estop_inside_a_flood_on_0x001_at_the_buss_maximum_rate(
         f"the flood ran at {flood_hz:.0f} of {rate_hz:.0f} frames/s ({flood.refused} refused)"
     )
     assert measured_s <= bound_s
-    assert "ESTOP" in m.wait_state("TRIPPED", 2.0)["trip_cause"]
     processes_alive(m)
 
 
