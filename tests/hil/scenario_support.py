@@ -432,13 +432,14 @@ class Probe:
     def describe_since(self, after: float) -> str:
         """What the probe captured after ``after``: how many frames, and the node's state in its newest NodeStatus."""
         seen = self.frames(after)
+        frames = f"{len(seen)} frame{'' if len(seen) == 1 else 's'}"
         statuses = [s for s in seen if isinstance(s.message, NodeStatus)]
         if not statuses:
-            return f"it captured {len(seen)} frames since, no NodeStatus among them"
+            return f"it captured {frames} since, no NodeStatus among them"
         newest = statuses[-1]
         status = newest.of(NodeStatus)
         return (
-            f"it captured {len(seen)} frames since, {len(statuses)} NodeStatus; the newest, at "
+            f"it captured {frames} since, {len(statuses)} NodeStatus; the newest, at "
             f"+{newest.t - after:.2f} s: {status.state.name}, first fault {FaultCode(status.first_fault).name}, "
             f"fault bits {status.fault_bits!r}"
         )
