@@ -6,6 +6,8 @@ stretch or shrink the bound it checks. The sequences are written out by hand, ea
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import can
 
 from millctl.protocol import Decoded, DriveTelemetry
@@ -14,7 +16,7 @@ from tests.hil.scenario_support import Seen, sequence_limit_reached_at
 TELEMETRY = DriveTelemetry(60.0, 300.0, 0.1, 0.1)
 
 
-def frames(counters: list[int | None], crc_bad: frozenset[int] = frozenset()) -> list[Seen]:
+def frames(counters: Sequence[int | None], crc_bad: frozenset[int] = frozenset()) -> list[Seen]:
     """One DriveTelemetry frame per counter, the i-th received at t = i s (None: a frame with no counter)."""
     seen = []
     for i, counter in enumerate(counters):
