@@ -54,7 +54,7 @@ from millctl.protocol import (
     default_codec,
     open_bus,
 )
-from millctl.protocol.e2e import COUNTER_MODULO, DEFAULT_MAX_DELTA
+from millctl.protocol.e2e import E2EReceiver
 from millctl.safety import Envelope
 from tests.hil.conftest import IN_VM
 from tests.support.pace import slowdown_now, time_scale
@@ -341,27 +341,15 @@ def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
 def sequence_limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
     """When the frames ``seen`` on one identifier (in bus order) first give a sequence score of ``limit`` (s).
 
-    The score as docs/safety.md defines it for one sender per identifier (SAFETY 17): +1 for a counter
-    repeated from the last accepted one or more than ``DEFAULT_MAX_DELTA`` past it, and −1 only after
-    ``decay_frames`` fresh frames in a row. None while the frames do not reach the limit.
+    The score is the receiver's own (SAFETY 17, :class:`~millctl.protocol.e2e.E2EReceiver`), fed the frames
+    with a good CRC and a counter as the probe saw them. None while they do not reach the limit.
     """
-    last: int | None = None
-    score = fresh_run = 0
+    receiver = E2EReceiver(limit, sequence_decay_frames=decay_frames)
     for s in seen:
-        counter = s.decoded.counter if s.decoded is not None and s.decoded.crc_ok else None
-        if counter is None:
-            continue
-        delta = None if last is None else (counter - last) % COUNTER_MODULO
-        if delta == 0 or (delta is not None and delta > DEFAULT_MAX_DELTA):
-            score, fresh_run = score + 1, 0
-            if score >= limit:
+        if s.decoded is not None and s.decoded.crc_ok and s.decoded.counter is not None:
+            receiver.classify(s.decoded.counter, crc_ok=True)
+            if receiver.sequence_score >= limit:
                 return s.t
-        elif score > 0:
-            fresh_run += 1
-            if fresh_run >= decay_frames:
-                score, fresh_run = score - 1, 0
-        if delta != 0:
-            last = counter
     return None
 
 
@@ -432,14 +420,14 @@ class Probe:
     def describe_since(self, after: float) -> str:
         """What the probe captured after ``after``: how many frames, and the node's state in its newest NodeStatus."""
         seen = self.frames(after)
-        frames = f"{len(seen)} frame{'' if len(seen) == 1 else 's'}"
+        count = f"{len(seen)} frame{'' if len(seen) == 1 else 's'}"
         statuses = [s for s in seen if isinstance(s.message, NodeStatus)]
         if not statuses:
-            return f"it captured {frames} since, no NodeStatus among them"
+            return f"it captured {count} since, no NodeStatus among them"
         newest = statuses[-1]
         status = newest.of(NodeStatus)
         return (
-            f"it captured {frames} since, {len(statuses)} NodeStatus; the newest, at "
+            f"it captured {count} since, {len(statuses)} NodeStatus; the newest, at "
             f"+{newest.t - after:.2f} s: {status.state.name}, first fault {FaultCode(status.first_fault).name}, "
             f"fault bits {status.fault_bits!r}"
         )

@@ -108,9 +108,10 @@ def estop_reaction(
     """
     t_estop = adversary.send(adversary.forged(EStop(EStopSource.BUTTON)))
     seen = wait_status(mill, probe, reports_estop, t_estop, "NodeStatus FAULT with the ESTOP bit")
-    first = FaultCode(seen.of(NodeStatus).first_fault)
+    report = seen.of(NodeStatus)
+    first = FaultCode(report.first_fault)
     assert first in {FaultCode.ESTOP, *may_come_first}, (
-        f"the node latched {first.name} before the E-stop ({seen.of(NodeStatus)!r})\n{mill._tail()}"
+        f"the node latched {first.name} before the E-stop ({report!r})\n{mill._tail()}"
     )
     cause = mill.wait_state("TRIPPED", 2.0)["trip_cause"]
     assert first.name in cause, f"the node's first fault was {first.name}, the controller's trip cause {cause!r}"
