@@ -21,6 +21,7 @@ import os
 import re
 import secrets
 import signal
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -63,6 +64,9 @@ if TYPE_CHECKING:
     import subprocess
 
     from tests.hil.conftest import Spawner, Transport
+
+SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
+"""Linux's ``SO_RCVBUFFORCE`` (33; Python names it only where the platform headers do)."""
 
 M = TypeVar("M", bound=MillMessage)
 T = TypeVar("T")
@@ -339,11 +343,22 @@ def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
 
 
 def sequence_limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
-    """When the frames ``seen`` on one identifier (in bus order) first give a sequence score of ``limit`` (s).
+    """When the frames ``seen`` on one identifier first give a sequence score of ``limit`` (s), as sent or as received.
 
     The score is the receiver's own (SAFETY 17, :class:`~millctl.protocol.e2e.E2EReceiver`), fed the frames
-    with a good CRC and a counter as the probe saw them. None while they do not reach the limit.
+    with a good CRC and a counter. Two orders are judged, and the earlier moment is the evidence (None while
+    neither reaches the limit): the order the probe received them in, and the order of their kernel
+    timestamps, which is the order they were sent in. On a CAN wire the two are one. On vcan, frames from
+    senders on different CPUs reach each socket in the order those CPUs' soft interrupts deliver them, so
+    every receiver, the controller's included, may see its own order (seen in the VM: a forged counter 2
+    received before the genuine 1 stamped 1.8 ms earlier, and the probe's score resynchronised on it).
     """
+    moments = [_limit_reached_at(order, limit, decay_frames) for order in (seen, sorted(seen, key=lambda s: s.t))]
+    return min((t for t in moments if t is not None), default=None)
+
+
+def _limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
+    """When the frames ``seen``, in this order, first give a sequence score of ``limit`` (s); None if never."""
     receiver = E2EReceiver(limit, sequence_decay_frames=decay_frames)
     for s in seen:
         if s.decoded is not None and s.decoded.crc_ok and s.decoded.counter is not None:
@@ -351,6 +366,30 @@ def sequence_limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -
             if receiver.sequence_score >= limit:
                 return s.t
     return None
+
+
+PROBE_RECEIVE_QUEUE_BYTES = 4 * 2**20
+"""The probe's socket receive queue on SocketCAN (bytes; udp_multicast's bus sizes its own, millctl.protocol.udp).
+
+The kernel's default (``net.core.rmem_default``, ~208 KiB: a few hundred frames) is what the test process
+may fall behind by when it stalls under emulation, and a frame the probe misses is evidence it lacks."""
+
+
+def deepen_receive_queue(bus: can.BusABC, size_bytes: int = PROBE_RECEIVE_QUEUE_BYTES) -> int | None:
+    """Ask the kernel for a receive queue of ``size_bytes`` on a SocketCAN bus; return what it granted (None: not one).
+
+    ``SO_RCVBUFFORCE`` passes ``net.core.rmem_max`` where the process may (root in the VM; the namespace's owner);
+    elsewhere ``SO_RCVBUF`` gets what the cap allows.
+    """
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket):
+        return None
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, size_bytes)
+    except OSError:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size_bytes)
+    granted: int = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+    return granted
 
 
 class Probe:
@@ -362,6 +401,7 @@ class Probe:
 
     def __init__(self, bus_config: Bus, codec: Codec) -> None:
         self.bus = open_bus(bus_config)
+        deepen_receive_queue(self.bus)
         self.codec = codec
         self._seen: list[Seen] = []
         self._lock = threading.Lock()

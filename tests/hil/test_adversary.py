@@ -285,9 +285,23 @@ def test_a_second_sender_on_the_nodes_frames_trips_the_controller(
         for kind in (NodeStatus, DriveTelemetry)
     ]
     reached = [t for t in evidence if t is not None and t <= stop.t]
+
+    def counters_seen() -> str:
+        """Each identifier's counters as the probe captured them up to the STOP (+s, counter), for the failure."""
+        return "; ".join(
+            f"{kind.__name__}: "
+            + " ".join(
+                f"{s.t - t_start:+.4f}/{s.decoded.counter}"
+                for s in probe.frames(t_start, is_kind(kind))
+                if s.t <= stop.t and s.decoded is not None
+            )
+            for kind in (NodeStatus, DriveTelemetry)
+        )
+
     assert reached, (
         f"the controller sent STOP at {stop.t - t_start:.3f} s with fewer than {interlock.e2e_error_limit} "
-        f"repeated or out-of-sequence counters on the bus on either identifier ({forged} frames forged)"
+        f"repeated or out-of-sequence counters on the bus on either identifier ({forged} frames forged); "
+        f"the probe captured {counters_seen()}"
     )
     measured_s = stop.t - min(reached)
     bound_s = m.bounds.controller_reacts_s

@@ -16,13 +16,19 @@ from tests.hil.scenario_support import Seen, sequence_limit_reached_at
 TELEMETRY = DriveTelemetry(60.0, 300.0, 0.1, 0.1)
 
 
-def frames(counters: Sequence[int | None], crc_bad: frozenset[int] = frozenset()) -> list[Seen]:
-    """One DriveTelemetry frame per counter, the i-th received at t = i s (None: a frame with no counter)."""
+def frames(
+    counters: Sequence[int | None], crc_bad: frozenset[int] = frozenset(), stamps: Sequence[float] | None = None
+) -> list[Seen]:
+    """One DriveTelemetry frame per counter, in the order received; the i-th stamped ``stamps[i]`` (default i s).
+
+    None as a counter: a frame with no counter.
+    """
     seen = []
     for i, counter in enumerate(counters):
         ok = i not in crc_bad
         decoded = Decoded(DriveTelemetry, TELEMETRY if ok else None, counter, ok, 0x110)
-        seen.append(Seen(float(i), can.Message(arbitration_id=0x110), decoded))
+        t = float(i) if stamps is None else stamps[i]
+        seen.append(Seen(t, can.Message(arbitration_id=0x110), decoded))
     return seen
 
 
@@ -64,3 +70,21 @@ def test_frames_failing_their_crc_or_without_a_counter_are_not_judged() -> None:
     # frame 1 fails its CRC (a corruption, not a second sender), frame 2 has no counter: only frame 4 repeats
     assert sequence_limit_reached_at(frames(counters, crc_bad=frozenset({1})), limit=1, decay_frames=16) == 4.0
     assert sequence_limit_reached_at(frames(counters, crc_bad=frozenset({1})), limit=2, decay_frames=16) is None
+
+
+def test_frames_received_out_of_the_order_they_were_sent_are_judged_as_sent() -> None:
+    # The VM's capture: forged 1 (t 1), then forged 2 (t 3) received before genuine 1 (t 2), genuine 2, forged 3,
+    # genuine 3. As received, genuine 1 goes back (out of sequence: 1) and the receiver resynchronises on it, so
+    # genuine 2 looks fresh; the repeat of 3 is the second. As sent (0 1 1 2 2 3 3): repeats at t 2, 4 and 6.
+    counters = [0, 1, 2, 1, 2, 3, 3]
+    stamps = [0.0, 1.0, 3.0, 2.0, 4.0, 5.0, 6.0]
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=2, decay_frames=16) == 4.0
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=3, decay_frames=16) == 6.0
+
+
+def test_frames_sent_in_sequence_but_received_out_of_it_count_as_received() -> None:
+    # sent 0 1 2 3, received 0 2 1 3: as sent there is no error; as received, 1 after 2 goes back (out of sequence)
+    counters = [0, 2, 1, 3]
+    stamps = [0.0, 2.0, 1.0, 3.0]
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=1, decay_frames=16) == 1.0
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=2, decay_frames=16) is None
