@@ -512,6 +512,22 @@ NODE_SEED_ENV = "MILLCTL_NODE_SEED"
 """Environment variable that fixes the node's seed (to replay a run: its seed is printed as each node starts)."""
 
 
+def mean_measured_rpm(statuses: list[dict[str, Any]]) -> tuple[float, float]:
+    """The mean measured ω_r, ω_v (rpm) over a window of statuses, each sensor reading counted once.
+
+    One reading carries the sensor's Gaussian noise (``drives.*.speed_noise_rpm``: σ = 1 rpm on the
+    vibration drive), so the 3 rpm measurement tolerance is 3σ and one reading in about 370 falls outside
+    it while the drive holds its speed exactly. "The mill holds the pair" is a claim about the mean:
+    σ/√n. Consecutive statuses often repeat one telemetry frame; repeats are counted once.
+    """
+    if not statuses:
+        raise ValueError("no statuses in the window: nothing to average")
+    pairs = [(float(s["measured_rotary_rpm"]), float(s["measured_vibration_rpm"])) for s in statuses]
+    readings = [pair for i, pair in enumerate(pairs) if i == 0 or pair != pairs[i - 1]]
+    n = len(readings)
+    return sum(r for r, _ in readings) / n, sum(v for _, v in readings) / n
+
+
 def node_seed() -> int:
     """The seed of a scenario's node (``--seed``): ``MILLCTL_NODE_SEED`` if set, else a fresh one for each node.
 
@@ -657,6 +673,15 @@ class Mill:
             return s if close else None
 
         return wait_for(there, self.timeout(timeout_s), f"measured speeds {rotary_rpm}/{vibration_rpm} rpm")
+
+    def watch(self, window_s: float, period_s: float = 0.05) -> list[dict[str, Any]]:
+        """The controller's status every ``period_s`` through a window of ``window_s`` (both scaled), in order."""
+        deadline = time.monotonic() + self.timeout(window_s)
+        seen = [self.status()]
+        while time.monotonic() < deadline:
+            time.sleep(self.timeout(period_s))
+            seen.append(self.status())
+        return seen
 
     def at_standstill(self) -> bool:
         """Both measured speeds (as the controller sees them) below the standstill threshold."""

@@ -56,6 +56,7 @@ from tests.hil.scenario_support import (
     is_kind,
     is_status,
     load_scale,
+    mean_measured_rpm,
     mill_on,
     report_timing,
     wait_for,
@@ -146,12 +147,13 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(
     mill.client.set_speeds(*LOW_RPM)
     mill.wait_speeds(*LOW_RPM, timeout_s=30.0)
 
-    time.sleep(mill.timeout(1.0))  # steady milling (a window of the processes' time: scaled like every wait)
-    steady = mill.status()
-    assert steady["state"] == "RUNNING" and steady["node_state"] == "RUNNING", steady["trip_cause"]
-    assert steady["measured_rotary_rpm"] == pytest.approx(LOW_RPM[0], abs=3.0)
-    assert steady["measured_vibration_rpm"] == pytest.approx(LOW_RPM[1], abs=3.0)
-    assert steady["detached"] is not None  # the node's physics telemetry arrives
+    window = mill.watch(1.0)  # steady milling (a window of the processes' time: scaled like every wait)
+    for steady in window:
+        assert steady["state"] == "RUNNING" and steady["node_state"] == "RUNNING", steady["trip_cause"]
+    tolerance = mill.config.interlock.measurement_tolerance_rpm
+    # The mean over the window: one noisy reading is outside 3 rpm about once in 370 (mean_measured_rpm).
+    assert mean_measured_rpm(window) == pytest.approx(LOW_RPM, abs=tolerance)
+    assert window[-1]["detached"] is not None  # the node's physics telemetry arrives
 
     mill.client.take_control()  # renew the lease (30 s): in the VM the ramp and the steady window outlast it
     t_stop = time.time()
@@ -282,11 +284,11 @@ def test_rogue_senders_setpoint_refused_by_the_node(
     report_timing(capsys, f"rogue_{case}_refused", transport.name, reply.t - t_sent, bound_s)
     assert reply.t - t_sent <= bound_s
 
-    time.sleep(mill.timeout(0.5))  # what the rogue frame would have moved shows in this window (scaled)
+    window = mill.watch(0.5)  # what the rogue frame would have moved shows in this window (scaled)
     assert mill.outside_envelope(drive_frames(probe, t_sent)) == []
-    status = mill.status()
-    assert status["state"] == "RUNNING" and status["node_state"] == "RUNNING"
-    assert status["measured_rotary_rpm"] == pytest.approx(LOW_RPM[0], abs=3.0)  # the rogue moved nothing
+    assert all(s["state"] == "RUNNING" and s["node_state"] == "RUNNING" for s in window)
+    tolerance = mill.config.interlock.measurement_tolerance_rpm
+    assert mean_measured_rpm(window) == pytest.approx(LOW_RPM, abs=tolerance)  # the rogue moved nothing
 
 
 # --- failures of the machine -------------------------------------------------------------------------------------
