@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import socket
 import time
 import uuid
 from collections.abc import Iterator
+from typing import cast
 
 import can
 import pytest
 
 from millctl.config.models import Bus
 from millctl.protocol import FaultCode, FaultFlag, NodeState, NodeStatus, RefusalCode, default_codec, open_bus
-from tests.hil.scenario_support import Probe
+from tests.hil.scenario_support import Probe, deepen_receive_queue
 
 WATCHDOG_THEN_ESTOP = NodeStatus(
     NodeState.FAULT, FaultFlag.WATCHDOG | FaultFlag.ESTOP, FaultCode.WATCHDOG, 0, RefusalCode.NONE
@@ -61,3 +63,27 @@ def test_with_no_status_captured_it_says_so(probe_and_sender: tuple[Probe, can.B
     captured(probe, t0, 1)
     assert probe.describe_since(t0) == "it captured 1 frame since, no NodeStatus among them"
     assert probe.describe_since(time.time() + 60.0) == "it captured 0 frames since, no NodeStatus among them"
+
+
+class SocketBus:
+    """A stand-in for python-can's SocketcanBus: what deepen_receive_queue reads of it is its ``socket``."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.socket = sock
+
+
+def test_the_probes_receive_queue_is_deepened_on_a_socket_bus() -> None:
+    # An unbound UDP socket (it neither sends nor receives): the kernel sizes its queue as it would the probe's.
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        before = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        granted = deepen_receive_queue(cast(can.BusABC, SocketBus(sock)))
+        assert granted == sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        assert granted is not None and granted > before
+
+
+def test_a_bus_without_a_socket_is_left_alone() -> None:
+    bus = open_bus(Bus(interface="virtual", channel=f"probe-{uuid.uuid4().hex}"))
+    try:
+        assert deepen_receive_queue(bus) is None
+    finally:
+        bus.shutdown()
