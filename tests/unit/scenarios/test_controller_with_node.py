@@ -80,6 +80,7 @@ def test_vibration_stall_mid_run_trips_and_stops_inside_the_envelope(rig: Rig, c
     # after the trip the rotary drive only ever slowed down
     i0 = next(i for i, t in enumerate(rig.trace.t_s) if t >= t_stall + elapsed)
     rotary = [w for w, _ in rig.trace.true[i0:]]
+    assert rotary[0] > 100.0 and rotary[-1] < 1.0, (rotary[0], rotary[-1])  # the trace covers the slow-down
     assert all(b <= a + 0.5 for a, b in itertools.pairwise(rotary))
 
 

@@ -91,4 +91,5 @@ def test_shipped_studies_near_the_papers_point(name: str, best: tuple[float, flo
     else:
         # the corrected every-phase envelope excludes the whole neighbourhood of the paper's point
         assert result.best is None
+        assert len(result.rows) == 6  # the 3 × 2 grid above, each point judged
         assert all("corrected-every-phase" in r["violations"] for r in result.rows)
