@@ -10,10 +10,7 @@ drivers that report the controller's state instead (ixxat, etas).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import can
-import pytest
 
 from millctl.api import BusCondition, EventKind, StatusOut
 from millctl.config import MillConfig
@@ -29,13 +26,6 @@ def error_frame(classes: int, crtl: int = 0, tec: int = 0, rec: int = 0) -> can.
     """An error frame as SocketCAN delivers it: the classes in the identifier, TEC/REC in data[6], data[7]."""
     return can.Message(arbitration_id=classes, is_error_frame=True, is_extended_id=False,
                        data=bytes((0, crtl, 0, 0, 0, 0, tec, rec)))
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def bus_events(rig: Rig) -> list[str]:

@@ -6,12 +6,9 @@ plays the babbling node, the flooder and the sender of malformed frames.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import can
 import pytest
 
-from millctl.config import MillConfig
 from millctl.controller import ControllerState as S
 from millctl.protocol import (
     ControllerState,
@@ -25,13 +22,6 @@ from millctl.protocol import (
 from tests.unit.scenarios.rig import Rig
 
 LOW_RPM = (60.0, 300.0)
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def raw(arbitration_id: int, data: bytes, **kwargs: object) -> can.Message:

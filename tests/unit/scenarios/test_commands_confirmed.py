@@ -7,7 +7,6 @@ is the adversary: it forges commands with counters the node will take.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 
 import pytest
 
@@ -26,13 +25,6 @@ from millctl.protocol import (
 )
 from millctl.protocol.receive import Batch
 from tests.unit.scenarios.rig import Rig
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def forge(rig: Rig, message: MillMessage, counter: int) -> None:

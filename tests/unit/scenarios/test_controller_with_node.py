@@ -7,7 +7,6 @@ safety behaviour the operator relies on.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -20,13 +19,6 @@ from millctl.controller import ControllerState as S
 from millctl.protocol import EStop, FaultFlag, NodeState, SimFaultCode
 from millctl.safety import InterlockRefused
 from tests.unit.scenarios.rig import Rig
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def outside_envelope(rig: Rig) -> list[tuple[float, float, float]]:

@@ -10,24 +10,13 @@ feeds the node's watchdog and the mill stops.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import can
-import pytest
 
-from millctl.config import MillConfig
 from millctl.protocol import FaultCode, FaultFlag, Heartbeat, NodeState, ProtocolError
 from tests.unit.scenarios.rig import Rig
 
 LOW_RPM = (60.0, 300.0)
 RECORDED = 16
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def heartbeats_heard(rig: Rig) -> list[can.Message]:

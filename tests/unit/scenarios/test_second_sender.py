@@ -8,11 +8,6 @@ alone the two cancelled out for ever, and the controller believed the forger.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
-import pytest
-
-from millctl.config import MillConfig
 from millctl.controller import ControllerState as S
 from millctl.protocol import (
     NO_FAULTS,
@@ -35,13 +30,6 @@ ALL_WELL: dict[type[MillMessage], MillMessage] = {
     NodeStatus: NodeStatus(NodeState.RUNNING, NO_FAULTS, FaultCode.NONE, 0, RefusalCode.NONE),
     DriveTelemetry: DriveTelemetry(*LOW_RPM, 0.1, 0.1),
 }
-
-
-@pytest.fixture
-def rig(config: MillConfig) -> Iterator[Rig]:
-    r = Rig(config)
-    yield r
-    r.close()
 
 
 def forge_answers(rig: Rig, kinds: tuple[type[MillMessage], ...]) -> int:
