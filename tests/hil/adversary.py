@@ -56,6 +56,8 @@ class Background:
     """Wall-clock time just after its last frame went out (None before; set by the senders that need it)."""
     refused: int = 0
     """Sends the interface refused (its transmit queue full)."""
+    genuine_counter: int | None = None
+    """The counter of the genuine frame a sender that waits for one heard (None before)."""
     _halt: threading.Event = field(default_factory=threading.Event)
     _thread: threading.Thread | None = None
 
@@ -193,13 +195,27 @@ class Adversary:
 
         return self._background("replay", body)
 
-    def walk(
-        self, start: Setpoints, step_rpm: tuple[float, float], first_counter: int, frames_per_burst: int = 5
-    ) -> Background:
-        """A fast forger: Setpoints frames with fresh counters from ``first_counter``, each ``step_rpm`` past the
-        last, ``frames_per_burst`` at a time every ``BURST_S`` (1000 frames/s by default), until stopped."""
+    def walk(self, start: Setpoints, step_rpm: tuple[float, float], frames_per_burst: int = 5) -> Background:
+        """A fast forger: Setpoints frames with fresh counters, each ``step_rpm`` past the last, ``frames_per_burst``
+        at a time every ``BURST_S`` (1000 frames/s by default), until stopped.
+
+        It listens first, as an attacker on the bus would, and starts the moment it hears the controller's next
+        Setpoints frame, with that frame's counter + 1 (the socket's backlog is dropped first, so the frame is a
+        new one). Started at a random moment instead, the controller's next frame could land inside the forger's
+        burst with a counter that happens to be fresh (+1 … +3 past the forged one, 3 chances in 16) while the
+        node's rate bound still had room for the step back: the node took it and undid the forgery within
+        milliseconds, the drive moved less than the measurement tolerance, and rightly nothing tripped (seen once
+        in the VM, where the scaled watchdog makes the burst some 40 frames long; tests/unit/scenarios/
+        test_fast_forger.py shows both cases). Timed this way the next genuine frame comes a setpoint period
+        later, when the burst is spent and the node refuses the step back.
+        """
+        self.skip_backlog()
 
         def body(sender: Background) -> None:
+            heard = next(iter(self._heard(sender, (Setpoints,))), None)
+            if heard is None or heard.counter is None:  # stopped before the controller sent one
+                return
+            sender.genuine_counter = heard.counter
             while not sender.halted:
                 frames: list[can.Message] = []
                 for _ in range(frames_per_burst):
@@ -209,7 +225,7 @@ class Adversary:
                         rotary_rpm=round(start.rotary_rpm + k * step_rpm[0], 1),
                         vibration_rpm=round(start.vibration_rpm + k * step_rpm[1], 1),
                     )
-                    frames.append(self.forged(ask, (first_counter + k - 1) % 16))
+                    frames.append(self.forged(ask, (heard.counter + k) % 16))
                 t = self.send(*frames)
                 sender.first_sent_t = sender.first_sent_t or t
                 sender.last_sent_t = time.time()
