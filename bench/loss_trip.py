@@ -21,25 +21,29 @@ from collections.abc import Sequence
 import numpy as np
 
 from bench.common import bench_config
-from millctl.protocol.e2e import COUNTER_MODULO, E2EReceiver
+from millctl.protocol import DriveTelemetry, default_codec
+from millctl.protocol.e2e import COUNTER_MODULO, E2EReceiver, sequence_decay_s
 
 
 def trip_probability(loss: float, frames: int, trials: int, seed: int = 17) -> float:
     """Share of ``trials`` phases of ``frames`` frames, each lost independently with ``loss``, that fault the link."""
     interlock = bench_config().interlock
+    period_s = default_codec().cycle_time_s(DriveTelemetry) or 1.0  # the node's fastest stream, sent on time
+    min_decay_s = sequence_decay_s(interlock.e2e_sequence_decay_frames, period_s)
     rng = np.random.default_rng(seed)
     trips = 0
     for _ in range(trials):
         receiver = E2EReceiver(
             interlock.e2e_error_limit,
             sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+            min_decay_s=min_decay_s,
         )
-        receiver.classify(0, True)
+        receiver.classify(0, True, 0.0)
         lost = rng.random(frames) < loss
         for k in range(1, frames + 1):
             if lost[k - 1]:
                 continue
-            receiver.classify(k % COUNTER_MODULO, True)
+            receiver.classify(k % COUNTER_MODULO, True, k * period_s)
             if receiver.faulted:
                 trips += 1
                 break

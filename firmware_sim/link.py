@@ -3,7 +3,9 @@
 Every E2E-protected frame from the controller (Command, Heartbeat,
 Setpoints) goes through one :class:`~millctl.protocol.E2EReceiver` per
 message (SAFETY.md item 3). Either E2E score at the configured limit on any
-of them faults the link.
+of them faults the link. The sequence score is forgiven no faster than the
+controller sends (:data:`SENDER_PERIOD`), so a forger that out-sends it
+cannot pay back the errors its interleaving makes (item 17).
 
 Only a *fresh* heartbeat feeds the watchdog (items 2 and 16): its E2E status
 is fresh (OK or OK_SOME_LOST: never a repeated, out-of-sequence or bad-CRC
@@ -25,9 +27,19 @@ from __future__ import annotations
 import logging
 import secrets
 from collections import deque
+from collections.abc import Callable
 
 from millctl.config.models import MillConfig
-from millctl.protocol import Command, Decoded, E2EReceiver, E2EStatus, Heartbeat, MillMessage, Setpoints
+from millctl.protocol import (
+    Command,
+    Decoded,
+    E2EReceiver,
+    E2EStatus,
+    Heartbeat,
+    MillMessage,
+    Setpoints,
+    sequence_decay_s,
+)
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +72,14 @@ class ChallengeSequence:
 GUARDED: tuple[type[MillMessage], ...] = (Command, Heartbeat, Setpoints)
 """The controller's E2E-protected messages the node checks."""
 
+SENDER_PERIOD: dict[type[MillMessage], Callable[[MillConfig], float]] = {
+    Command: lambda config: config.interlock.command_repeat_s,
+    Heartbeat: lambda config: config.timing.heartbeat_period_s,
+    Setpoints: lambda config: config.timing.setpoint_period_s,
+}
+"""How often the controller sends each guarded message at most (s): Heartbeat and Setpoints every period;
+a Command, when given, and again every ``command_repeat_s`` while unconfirmed."""
+
 
 class LinkMonitor:
     """E2E receivers for the controller's frames and the heartbeat watchdog (times in s)."""
@@ -72,6 +92,7 @@ class LinkMonitor:
                 error_limit=interlock.e2e_error_limit,
                 name=kind.__name__,
                 sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+                min_decay_s=sequence_decay_s(interlock.e2e_sequence_decay_frames, SENDER_PERIOD[kind](config)),
             )
             for kind in GUARDED
         }
@@ -114,7 +135,7 @@ class LinkMonitor:
     def check(self, decoded: Decoded, now_s: float) -> E2EStatus:
         """Classify one decoded controller frame; a fresh heartbeat feeds the watchdog."""
         receiver = self.receivers[decoded.kind]
-        status = receiver.check(decoded)
+        status = receiver.check(decoded, now_s)
         if not status.fresh:
             log.debug(
                 "%s frame %s (counter %s, E2E score %d, sequence score %d)",
@@ -148,4 +169,4 @@ class LinkMonitor:
             receiver.clear_scores()
 
 
-__all__ = ["CHALLENGE_VALUES", "GUARDED", "ChallengeSequence", "LinkMonitor"]
+__all__ = ["CHALLENGE_VALUES", "GUARDED", "SENDER_PERIOD", "ChallengeSequence", "LinkMonitor"]

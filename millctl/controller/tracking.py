@@ -6,7 +6,9 @@ min_stale_s) — is stale, and stale telemetry trips the controller
 their own phases: a stream not yet received is judged from the moment the
 node was first seen, with the bound max(its stale bound,
 ``interlock.startup_grace_s``), so that a start never trips on a stream that
-is merely late, while one that never comes is still a fault.
+is merely late, while one that never comes is still a fault. A stream's E2E
+sequence score is forgiven no faster than the node sends it (its DBC period,
+:func:`~millctl.protocol.e2e.sequence_decay_s`; SAFETY 17).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from millctl.protocol import (
     MillMessage,
     NodeStatus,
     PhysicsTelemetry,
+    sequence_decay_s,
 )
 
 TRACKED: tuple[type[MillMessage], ...] = (NodeStatus, DriveTelemetry, FurnaceTelemetry, PhysicsTelemetry)
@@ -63,6 +66,7 @@ class TelemetryTracker:
                     error_limit=interlock.e2e_error_limit,
                     name=kind.__name__,
                     sequence_decay_frames=interlock.e2e_sequence_decay_frames,
+                    min_decay_s=sequence_decay_s(interlock.e2e_sequence_decay_frames, period),
                 )
                 if kind.E2E
                 else None
@@ -83,7 +87,7 @@ class TelemetryTracker:
         track = self.tracks.get(decoded.kind)
         if track is None:
             return None
-        status = track.receiver.check(decoded) if track.receiver is not None else E2EStatus.OK
+        status = track.receiver.check(decoded, now_s) if track.receiver is not None else E2EStatus.OK
         track.counts[status.value] = track.counts.get(status.value, 0) + 1
         if not status.fresh or decoded.message is None:
             return None

@@ -10,7 +10,7 @@ from __future__ import annotations
 from millctl.protocol.busload import BusLoad, bus_load
 from millctl.protocol.buslog import RotatingBusLog
 from millctl.protocol.codec import DBC_NAME, Codec, Decoded, default_codec
-from millctl.protocol.e2e import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
+from millctl.protocol.e2e import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc, sequence_decay_s
 from millctl.protocol.errors import ProtocolError, SignalRangeError
 from millctl.protocol.factory import bus_kwargs, estop_channel_kwargs, open_bus, open_estop_channel
 from millctl.protocol.messages import (
@@ -84,4 +84,5 @@ __all__ = [
     "is_estop",
     "open_bus",
     "open_estop_channel",
+    "sequence_decay_s",
 ]

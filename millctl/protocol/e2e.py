@@ -24,7 +24,14 @@ the limit (``interlock.e2e_error_limit``):
   genuine frame with counter + 1 keeps the score level (genuine ``REPEATED``
   +1, spoof ``OK`` −1) for ever. Good frames do not pay for sequence errors
   here, so a second sender faults the link unless it sends less than one
-  frame in ``sequence_decay_frames``.
+  frame in ``sequence_decay_frames``. Nor may a sender buy forgiveness by
+  sending fast: with ``min_decay_s`` set (:func:`sequence_decay_s`: the time
+  the identifier's own sender takes for ``sequence_decay_frames`` frames, at
+  up to ``SEQUENCE_RATE_SLACK`` times its rate), a point comes off only when
+  that long has also passed since the last sequence error or the last point
+  forgiven. Counted in frames alone, a forger that out-sends the genuine
+  sender 16 to 1 paid back the errors its interleaving made as fast as it
+  made them, and the link never faulted.
 
 Only ``OK`` and ``OK_SOME_LOST`` frames are fresh; a repeated or
 out-of-sequence counter never counts as a heartbeat.
@@ -44,6 +51,19 @@ DEFAULT_MAX_DELTA = 3
 """Largest counter step still accepted as "some frames lost" (profile 1's MaxDeltaCounter)."""
 DEFAULT_SEQUENCE_DECAY_FRAMES = 16
 """Fresh frames that take one off the sequence score (``interlock.e2e_sequence_decay_frames``)."""
+SEQUENCE_RATE_SLACK = 2.0
+"""How many times its nominal rate an identifier's sender may send and still be forgiven at the frames' pace."""
+
+
+def sequence_decay_s(decay_frames: int, period_s: float) -> float:
+    """The least time a point of the sequence score takes to come off, for a sender with this period (s).
+
+    ``decay_frames`` frames at ``SEQUENCE_RATE_SLACK`` times the nominal rate: a genuine sender's jitter and
+    catch-up frames never meet it, a sender many times faster (a forger out-sending the genuine one) does.
+    """
+    if not period_s > 0.0:
+        raise ValueError(f"E2E sequence decay: the sender's period {period_s!r} s must be > 0")
+    return decay_frames * period_s / SEQUENCE_RATE_SLACK
 
 
 def _table() -> tuple[int, ...]:
@@ -150,10 +170,16 @@ class E2EReceiver:
     """What this receiver guards, for messages (e.g. the message name)."""
     sequence_decay_frames: int = DEFAULT_SEQUENCE_DECAY_FRAMES
     """Fresh frames per point taken off the sequence score (``interlock.e2e_sequence_decay_frames``)."""
+    min_decay_s: float = 0.0
+    """The least time per point taken off the sequence score (s, :func:`sequence_decay_s`); 0: frames alone.
+    When set, every frame is classified with its time of arrival."""
     score: int = field(default=0, init=False)
     sequence_score: int = field(default=0, init=False)
-    """Repeated and out-of-sequence counters, decaying by one per ``sequence_decay_frames`` fresh frames."""
+    """Repeated and out-of-sequence counters, decaying by one per ``sequence_decay_frames`` fresh frames
+    (and ``min_decay_s``)."""
     _fresh_run: int = field(default=0, init=False, repr=False)
+    _decay_from_s: float = field(default=0.0, init=False, repr=False)
+    """When the last sequence error came or the last point was forgiven (s): the time toward the next point."""
     last_counter: int | None = field(default=None, init=False)
     counts: dict[E2EStatus, int] = field(default_factory=lambda: dict.fromkeys(E2EStatus, 0), init=False)
 
@@ -164,6 +190,8 @@ class E2EReceiver:
             raise ValueError(f"E2E max_delta {self.max_delta} must be in 1 … {COUNTER_MODULO - 2}")
         if self.sequence_decay_frames < 1:
             raise ValueError(f"E2E sequence_decay_frames {self.sequence_decay_frames} must be ≥ 1")
+        if not 0.0 <= self.min_decay_s < float("inf"):
+            raise ValueError(f"E2E min_decay_s {self.min_decay_s!r} s must be finite and ≥ 0")
 
     @property
     def faulted(self) -> bool:
@@ -182,8 +210,13 @@ class E2EReceiver:
             return f"{what} E2E error score {self.score} ≥ limit {self.error_limit}"
         return None
 
-    def classify(self, counter: int | None, crc_ok: bool) -> E2EStatus:
-        """Classify one frame by its CRC verdict and alive counter, and update the score."""
+    def classify(self, counter: int | None, crc_ok: bool, now_s: float | None = None) -> E2EStatus:
+        """Classify one frame by its CRC verdict and alive counter, and update the scores.
+
+        ``now_s``: when the frame arrived (s, any monotonic clock); needed when ``min_decay_s`` is set.
+        """
+        if self.min_decay_s > 0.0 and now_s is None:
+            raise ValueError(f"{self.name or 'E2E receiver'}: min_decay_s is set, so classify needs the time (now_s)")
         if not crc_ok or counter is None or not 0 <= counter < COUNTER_MODULO:
             status = E2EStatus.WRONG_CRC
         elif self.last_counter is None:
@@ -205,19 +238,22 @@ class E2EReceiver:
             self.score += 1
         elif status is E2EStatus.OK:
             self.score = max(0, self.score - 1)
+        t_s = 0.0 if now_s is None else now_s
         if status.is_sequence_error:
             self.sequence_score += 1
             self._fresh_run = 0
+            self._decay_from_s = t_s
         elif status.fresh and self.sequence_score > 0:
             self._fresh_run += 1
-            if self._fresh_run >= self.sequence_decay_frames:
+            if self._fresh_run >= self.sequence_decay_frames and t_s - self._decay_from_s >= self.min_decay_s:
                 self.sequence_score -= 1
                 self._fresh_run = 0
+                self._decay_from_s = t_s
         return status
 
-    def check(self, decoded: _HasE2E) -> E2EStatus:
-        """Classify a decoded frame (anything with ``counter`` and ``crc_ok``)."""
-        return self.classify(decoded.counter, decoded.crc_ok)
+    def check(self, decoded: _HasE2E, now_s: float | None = None) -> E2EStatus:
+        """Classify a decoded frame (anything with ``counter`` and ``crc_ok``), arrived at ``now_s`` (s)."""
+        return self.classify(decoded.counter, decoded.crc_ok, now_s)
 
     def reset(self) -> None:
         """Forget the last counter and the scores (e.g. after an explicit RESET of the link)."""
@@ -242,9 +278,11 @@ __all__ = [
     "CRC8_XOR_OUT",
     "DEFAULT_MAX_DELTA",
     "DEFAULT_SEQUENCE_DECAY_FRAMES",
+    "SEQUENCE_RATE_SLACK",
     "AliveCounter",
     "E2EReceiver",
     "E2EStatus",
     "crc8_sae_j1850",
     "e2e_crc",
+    "sequence_decay_s",
 ]

@@ -204,10 +204,12 @@ class Adversary:
         new one). Started at a random moment instead, the controller's next frame could land inside the forger's
         burst with a counter that happens to be fresh (+1 … +3 past the forged one, 3 chances in 16) while the
         node's rate bound still had room for the step back: the node took it and undid the forgery within
-        milliseconds, the drive moved less than the measurement tolerance, and rightly nothing tripped (seen once
-        in the VM, where the scaled watchdog makes the burst some 40 frames long; tests/unit/scenarios/
-        test_fast_forger.py shows both cases). Timed this way the next genuine frame comes a setpoint period
-        later, when the burst is spent and the node refuses the step back.
+        milliseconds, the drive moved less than the measurement tolerance, so the measured speeds rightly showed
+        nothing, and the 0.3 s attack, with a genuine frame or two inside it, was too short for the link check
+        (SAFETY 17) to fault. Seen once in the VM, where the scaled watchdog makes the burst some 40 frames
+        long and the scaled setpoint period 0.7 s; tests/unit/scenarios/test_fast_forger.py shows both cases.
+        Timed this way the next genuine frame comes a setpoint period later, when the burst is spent and the
+        node refuses the step back.
         """
         self.skip_backlog()
 

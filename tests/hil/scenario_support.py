@@ -342,27 +342,33 @@ def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
     return lambda seen: seen.decoded is not None and seen.decoded.kind is kind
 
 
-def sequence_limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
+def sequence_limit_reached_at(
+    seen: list[Seen], limit: int, decay_frames: int, min_decay_s: float = 0.0
+) -> float | None:
     """When the frames ``seen`` on one identifier first give a sequence score of ``limit`` (s), as sent or as received.
 
-    The score is the receiver's own (SAFETY 17, :class:`~millctl.protocol.e2e.E2EReceiver`), fed the frames
-    with a good CRC and a counter. Two orders are judged, and the earlier moment is the evidence (None while
-    neither reaches the limit): the order the probe received them in, and the order of their kernel
+    The score is the receiver's own (SAFETY 17, :class:`~millctl.protocol.e2e.E2EReceiver`, with the
+    controller's ``min_decay_s`` for the identifier), fed the frames with a good CRC and a counter at their
+    capture times. Two orders are judged, and the earlier moment is the evidence (None while neither
+    reaches the limit): the order the probe received them in, and the order of their kernel
     timestamps, which is the order they were sent in. On a CAN wire the two are one. On vcan, frames from
     senders on different CPUs reach each socket in the order those CPUs' soft interrupts deliver them, so
     every receiver, the controller's included, may see its own order (seen in the VM: a forged counter 2
     received before the genuine 1 stamped 1.8 ms earlier, and the probe's score resynchronised on it).
     """
-    moments = [_limit_reached_at(order, limit, decay_frames) for order in (seen, sorted(seen, key=lambda s: s.t))]
+    moments = [
+        _limit_reached_at(order, E2EReceiver(limit, sequence_decay_frames=decay_frames, min_decay_s=min_decay_s))
+        for order in (seen, sorted(seen, key=lambda s: s.t))
+    ]
     return min((t for t in moments if t is not None), default=None)
 
 
-def _limit_reached_at(seen: list[Seen], limit: int, decay_frames: int) -> float | None:
-    """When the frames ``seen``, in this order, first give a sequence score of ``limit`` (s); None if never."""
-    receiver = E2EReceiver(limit, sequence_decay_frames=decay_frames)
+def _limit_reached_at(seen: list[Seen], receiver: E2EReceiver) -> float | None:
+    """When the frames ``seen``, in this order, first bring ``receiver``'s sequence score to its limit (s)."""
+    limit = receiver.error_limit
     for s in seen:
         if s.decoded is not None and s.decoded.crc_ok and s.decoded.counter is not None:
-            receiver.classify(s.decoded.counter, crc_ok=True)
+            receiver.classify(s.decoded.counter, crc_ok=True, now_s=s.t)
             if receiver.sequence_score >= limit:
                 return s.t
     return None

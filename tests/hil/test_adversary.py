@@ -36,6 +36,7 @@ from millctl.protocol import (
     RefusalCode,
     Setpoints,
     SimFaultCode,
+    sequence_decay_s,
 )
 from tests.hil.adversary import MAX_FRAME_RATE_HZ, Adversary, raw_frame
 from tests.hil.scenario_support import (
@@ -281,6 +282,7 @@ def test_a_second_sender_on_the_nodes_frames_trips_the_controller(
             probe.frames(t_start, is_kind(kind)),
             interlock.e2e_error_limit,
             interlock.e2e_sequence_decay_frames,
+            sequence_decay_s(interlock.e2e_sequence_decay_frames, m.codec.cycle_time_s(kind) or 1.0),
         )
         for kind in (NodeStatus, DriveTelemetry)
     ]

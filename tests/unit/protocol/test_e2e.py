@@ -8,7 +8,7 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from millctl.config import MillConfig
-from millctl.protocol import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc
+from millctl.protocol import AliveCounter, E2EReceiver, E2EStatus, crc8_sae_j1850, e2e_crc, sequence_decay_s
 
 # AUTOSAR SWS CRC Library, CRC8 (SAE J1850) examples, and the CRC catalogue's check value.
 KNOWN_ANSWERS = [
@@ -184,6 +184,70 @@ def test_a_second_sender_slower_than_the_decay_is_forgiven_and_a_faster_one_is_n
             if i % every == every - 1:
                 receiver.classify(value, crc_ok=True)  # one duplicate now and then
         assert receiver.faulted is faults, (every, receiver.sequence_score)
+
+
+def test_the_least_decay_time_is_the_decay_frames_at_twice_the_senders_rate() -> None:
+    assert sequence_decay_s(16, 0.1) == pytest.approx(0.8)  # 16 Setpoints frames at 20 Hz instead of 10
+    assert sequence_decay_s(16, 0.02) == pytest.approx(0.16)  # 16 DriveTelemetry frames at 100 Hz instead of 50
+    with pytest.raises(ValueError, match=r"the sender's period 0.0 s must be > 0"):
+        sequence_decay_s(16, 0.0)
+
+
+def forged_and_genuine(seconds: float, genuine_hz: float, forged_hz: float) -> list[tuple[float, int]]:
+    """(arrival time s, counter) of a genuine sender and a forger that keeps its own counters, merged in time."""
+    genuine, forger = AliveCounter(), AliveCounter(start=9)
+    frames = [(k / genuine_hz, genuine.next()) for k in range(round(seconds * genuine_hz))]
+    frames += [(k / forged_hz + 1e-4, forger.next()) for k in range(round(seconds * forged_hz))]
+    return sorted(frames)
+
+
+def test_a_forger_out_sending_the_genuine_sender_cannot_pay_back_the_errors_its_interleaving_makes() -> None:
+    """SAFETY 17: a 1000 Hz forger beside a 10 Hz sender. Counted in frames alone, its own fresh frames forgave
+    every error within the next 32 of them, and the link never faulted; with the sender's own pace as the
+    least decay time it faults within a second."""
+    frames = forged_and_genuine(5.0, genuine_hz=10.0, forged_hz=1000.0)
+    frames_alone = E2EReceiver(error_limit=5)
+    for t_s, counter in frames:
+        frames_alone.classify(counter, crc_ok=True, now_s=t_s)
+    assert not frames_alone.faulted and frames_alone.counts[E2EStatus.WRONG_SEQUENCE] >= 50
+    paced = E2EReceiver(error_limit=5, min_decay_s=sequence_decay_s(16, 0.1))
+    faulted_at = None
+    for t_s, counter in frames:
+        paced.classify(counter, crc_ok=True, now_s=t_s)
+        if paced.faulted:
+            faulted_at = t_s
+            break
+    assert faulted_at is not None and faulted_at < 1.0
+    reason = paced.fault_reason()
+    assert reason is not None and "second sender" in reason
+
+
+@pytest.mark.parametrize(
+    ("period_s", "forgiven_after"),
+    [(0.1, 16), (0.05, 16), (0.025, 32)],  # its own rate, twice it (the slack), four times it
+)
+def test_a_sender_at_up_to_twice_its_rate_is_forgiven_at_the_frames_pace(period_s: float, forgiven_after: int) -> None:
+    receiver = E2EReceiver(error_limit=5, min_decay_s=sequence_decay_s(16, 0.1))
+    counter = AliveCounter()
+    first = counter.next()
+    receiver.classify(first, True, 0.0)
+    receiver.classify(first, True, 0.0)  # one duplicate
+    assert receiver.sequence_score == 1
+    for k in range(1, 40):
+        receiver.classify(counter.next(), True, k * period_s)
+        if receiver.sequence_score == 0:
+            break
+    assert k == forgiven_after
+
+
+def test_a_receiver_with_a_least_decay_time_needs_the_time_of_each_frame() -> None:
+    receiver = E2EReceiver(error_limit=5, name="Setpoints", min_decay_s=0.8)
+    with pytest.raises(ValueError, match=r"Setpoints: min_decay_s is set, so classify needs the time"):
+        receiver.classify(0, crc_ok=True)
+    with pytest.raises(ValueError, match=r"E2E min_decay_s -1.0 s must be finite and ≥ 0"):
+        E2EReceiver(error_limit=5, min_decay_s=-1.0)
+    with pytest.raises(ValueError, match=r"E2E min_decay_s inf s must be finite and ≥ 0"):
+        E2EReceiver(error_limit=5, min_decay_s=float("inf"))
 
 
 def test_sequence_score_decays_one_per_decay_frames_fresh_frames_and_clears_on_reset() -> None:

@@ -10,16 +10,19 @@ When the attack starts decides what the burst does. The controller's next
 frame may land inside the burst with a counter that happens to be fresh (+1 …
 +3 past the forged one): the node then takes it, and the step back to the
 genuine setpoint still fits the rate bound, so the forgery is undone within
-milliseconds. The drive moves less than the tolerance, and nothing trips,
-rightly: the measured speeds never left what was commanded. This is why the
-bus scenario's forger (tests/hil/adversary.py, ``Adversary.walk``) starts on
-hearing a genuine frame, as an attacker on the bus would.
+milliseconds. The drive moves less than the tolerance, and the measured
+speeds, rightly, show nothing; what finds the forger then is the link check
+(SAFETY 17): its counters interleave with the controller's, and its own
+frames, however many, no longer pay back the errors that makes
+(``E2EReceiver.min_decay_s``). The bus scenario's forger
+(tests/hil/adversary.py, ``Adversary.walk``) starts on hearing a genuine
+frame, as an attacker on the bus would, so that its burst moves the drive.
 """
 
 from __future__ import annotations
 
 from millctl.controller import ControllerState as S
-from millctl.protocol import Decoded, ProtocolError, Setpoints
+from millctl.protocol import Decoded, FaultCode, ProtocolError, Setpoints
 from tests.unit.scenarios.rig import Rig
 
 LOW_RPM = (60.0, 300.0)
@@ -86,10 +89,15 @@ def test_a_forger_that_starts_after_a_genuine_frame_moves_the_drive_and_the_cont
     assert "is not what was commanded" in rig.controller.trip_cause
 
 
-def test_a_genuine_frame_fresh_by_chance_inside_the_burst_undoes_the_forgery(rig: Rig) -> None:
+def test_a_genuine_frame_fresh_by_chance_inside_the_burst_undoes_the_forgery_and_the_link_check_finds_the_forger(
+    rig: Rig,
+) -> None:
     """The forger's two frames just before the controller's next one carry counters 2 and 1 behind it: the first
     is out of sequence (refused, the receiver resynchronises on it), the second is taken (+16 rpm), and the
-    controller's frame, two past it, is fresh and steps back inside what is left of the burst."""
+    controller's frame, one past it, is fresh and steps back inside what is left of the burst. The drive never
+    moves past the tolerance, so the measured speeds show nothing; the interleaved counters fault the node's
+    link all the same (SAFETY 17: the forger's own frames do not pay back the errors), and the controller trips
+    on the node's fault."""
     rig.start(*LOW_RPM)
     counter, sent_s = next_genuine(rig)
     period_s = rig.config.timing.setpoint_period_s
@@ -100,7 +108,10 @@ def test_a_genuine_frame_fresh_by_chance_inside_the_burst_undoes_the_forgery(rig
         rig.probe.send(rig.codec.encode(forged, forged_counter % 16))
     assert [frame.counter for frame in tick(rig)] == [(counter + 1) % 16]
     assert rig.node.last_setpoint == Setpoints(LOW_RPM[0], LOW_RPM[1] + 2 * STEP_RPM, 25.0, False)
-    peak_rpm = attack(rig, (counter + 1) % 16, LOW_RPM[1] + 2 * STEP_RPM)
+    tick(rig)  # the node reads the controller's frame
     assert rig.node.last_setpoint == Setpoints(*LOW_RPM, 25.0, False)
+
+    peak_rpm = attack(rig, (counter + 1) % 16, LOW_RPM[1] + 2 * STEP_RPM)
     assert peak_rpm < LOW_RPM[1] + rig.config.interlock.measurement_tolerance_rpm
-    assert rig.controller.state is S.RUNNING
+    assert rig.node.first_fault is FaultCode.E2E_LINK
+    assert rig.controller.state is S.TRIPPED

@@ -11,6 +11,7 @@ from __future__ import annotations
 from millctl.controller import ControllerState as S
 from millctl.protocol import (
     NO_FAULTS,
+    AliveCounter,
     ControllerState,
     DriveTelemetry,
     FaultCode,
@@ -79,3 +80,27 @@ def test_a_second_heartbeat_sender_faults_the_nodes_link(rig: Rig) -> None:
     assert rig.node.link.receivers[Heartbeat].sequence_score >= rig.config.interlock.e2e_error_limit
     rig.run(2.0, until=lambda: rig.controller.state is S.TRIPPED)
     assert "E2E_LINK" in rig.controller.trip_cause
+
+
+def test_a_forger_out_sending_the_node_cannot_pay_back_the_errors_its_interleaving_makes(rig: Rig) -> None:
+    """An "all well" NodeStatus at 1000 frames/s beside the node's 20, on counters of its own. Each genuine frame
+    makes a sequence error or two; counted in frames alone, the forger's next 32 fresh frames forgave them, the
+    link never faulted, and the controller echoed the forger's challenges until the node's watchdog stopped the
+    mill, under the wrong name. Forgiven no faster than the node sends (``E2EReceiver.min_decay_s``), the
+    interleaving trips the controller within a few genuine frames, naming a second sender."""
+    rig.start(*LOW_RPM)
+    forged, started_s = AliveCounter(start=9), rig.clock.now()
+    for _ in range(round(1.0 / rig.dt_s)):
+        for _ in range(10):
+            rig.probe.send(rig.codec.encode(ALL_WELL[NodeStatus], forged.next()))
+        rig.node.tick()
+        rig.controller.tick()
+        for _ in iter(lambda: rig.probe.recv(timeout=0.0), None):
+            pass
+        rig.clock.advance(rig.dt_s)
+        if rig.controller.state is S.TRIPPED:
+            break
+    assert rig.controller.state is S.TRIPPED, "the controller believed the forger"
+    assert rig.clock.now() - started_s < 0.5
+    assert "NodeStatus E2E sequence score" in rig.controller.trip_cause
+    assert "second sender" in rig.controller.trip_cause

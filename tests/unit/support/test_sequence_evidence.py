@@ -65,6 +65,18 @@ def test_the_score_decays_only_after_a_run_of_fresh_frames_as_long_as_the_decay(
     assert sequence_limit_reached_at(frames(kept), limit=2, decay_frames=16) == float(len(kept) - 1)
 
 
+def test_the_score_decays_no_faster_than_the_controllers_least_decay_time() -> None:
+    """The 16 fresh frames that forgive a repeat came 0.01 s apart: a sender five times its 0.05 s pace, whose run
+    the controller (min_decay_s = 16 × 0.05 s / 2 = 0.4 s) has not forgiven when the next repeat comes."""
+    sixteen = [(1 + k) % 16 for k in range(16)]
+    counters = [0, 0, *sixteen, sixteen[-1]]
+    stamps = [0.0, 0.0] + [0.01 * (k + 1) for k in range(16)] + [0.17]
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=2, decay_frames=16) is None
+    assert sequence_limit_reached_at(frames(counters, stamps=stamps), limit=2, decay_frames=16, min_decay_s=0.4) == 0.17
+    slow = [0.0, 0.0] + [0.05 * (k + 1) for k in range(16)] + [0.85]  # at its pace: 0.8 s ≥ 0.4 s, forgiven
+    assert sequence_limit_reached_at(frames(counters, stamps=slow), limit=2, decay_frames=16, min_decay_s=0.4) is None
+
+
 def test_frames_failing_their_crc_or_without_a_counter_are_not_judged() -> None:
     counters: list[int | None] = [0, 0, None, 1, 1]
     # frame 1 fails its CRC (a corruption, not a second sender), frame 2 has no counter: only frame 4 repeats
