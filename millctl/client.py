@@ -78,6 +78,12 @@ CLIENT_HEADER = "X-Millctl-Client"
 LEASE_HEADER = "X-Millctl-Lease"
 LAST_EVENT_ID_HEADER = "Last-Event-ID"
 DEFAULT_TIMEOUT_S = 10.0
+CLIENT_KEEP_ALIVE_S = 2.0
+"""How long a client keeps an idle connection for reuse; the service keeps it far longer (SERVICE_KEEP_ALIVE_S).
+
+So an idle connection is always let go by the client first. With both at 5 s (uvicorn's and httpx's defaults), a
+request sent just as the service closed the connection met "Connection reset by peer" (tests/vm/README.md).
+"""
 
 P = ParamSpec("P")
 T = TypeVar("T", bound=BaseModel)
@@ -398,6 +404,11 @@ class _Base:
             return ServiceUnavailable(f"no millctl service on socket {path} ({exc}); start it with `millctl serve`")
         return ServiceUnavailable(f"no millctl service at {self.base_url} ({exc}); start it with `millctl serve`")
 
+    def _lost(self, request: Request, exc: Exception) -> ServiceUnavailable:
+        return ServiceUnavailable(f"the connection to the millctl {self.where} broke during "
+                                  f"{request.method} {request.path} ({exc}): whether it was carried out is unknown; "
+                                  "see `millctl status` and `millctl events`")
+
     def _transport_kwargs(self) -> dict[str, Any]:
         where = {"uds": self.socket_path} if self.socket_path is not None else {}
         return {**where, "verify": _tls_context()}
@@ -405,6 +416,9 @@ class _Base:
     def _stream_request(self, count: int | None) -> dict[str, Any]:
         return {"params": {"count": count} if count else None, "headers": self._stream_headers(),
                 "timeout": httpx.Timeout(self.timeout_s, read=None)}
+
+
+_LIMITS = httpx.Limits(keepalive_expiry=CLIENT_KEEP_ALIVE_S)
 
 
 @functools.cache
@@ -419,6 +433,8 @@ def _tls_context() -> ssl.SSLContext:
 
 _GONE = (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError)
 """What a missing or vanished service looks like to httpx."""
+_LOST = (httpx.ReadError, httpx.WriteError)
+"""A connection broken mid-request: the service may or may not have carried the request out."""
 
 
 class Operations(_Base):
@@ -458,7 +474,7 @@ class Client(Operations):
 
     def __init__(self, socket_path: str | os.PathLike[str] | None = None, **kwargs: Any) -> None:
         super().__init__(socket_path, **kwargs)
-        transport = httpx.HTTPTransport(**self._transport_kwargs())
+        transport = httpx.HTTPTransport(**self._transport_kwargs(), limits=_LIMITS)
         self._http = httpx.Client(base_url=self.base_url, transport=transport, timeout=self.timeout_s)
 
     def __enter__(self) -> Client:
@@ -477,6 +493,8 @@ class Client(Operations):
                                           headers=self._headers())
         except _GONE as exc:
             raise self._unavailable(exc) from exc
+        except _LOST as exc:
+            raise self._lost(request, exc) from exc
         return self._answer(op, response)
 
     @contextlib.contextmanager
@@ -505,6 +523,8 @@ class Client(Operations):
                         yield item
         except _GONE as exc:
             raise self._unavailable(exc) from exc
+        except _LOST as exc:
+            raise self._lost(Request("GET", "/v1/stream"), exc) from exc
 
 
 class AsyncClient(Operations):
@@ -512,7 +532,7 @@ class AsyncClient(Operations):
 
     def __init__(self, socket_path: str | os.PathLike[str] | None = None, **kwargs: Any) -> None:
         super().__init__(socket_path, **kwargs)
-        transport = httpx.AsyncHTTPTransport(**self._transport_kwargs())
+        transport = httpx.AsyncHTTPTransport(**self._transport_kwargs(), limits=_LIMITS)
         self._http = httpx.AsyncClient(base_url=self.base_url, transport=transport, timeout=self.timeout_s)
 
     async def __aenter__(self) -> AsyncClient:
@@ -531,6 +551,8 @@ class AsyncClient(Operations):
                                                 params=request.params, headers=self._headers())
         except _GONE as exc:
             raise self._unavailable(exc) from exc
+        except _LOST as exc:
+            raise self._lost(request, exc) from exc
         return self._answer(op, response)
 
     @contextlib.asynccontextmanager
@@ -556,10 +578,13 @@ class AsyncClient(Operations):
                         yield item
         except _GONE as exc:
             raise self._unavailable(exc) from exc
+        except _LOST as exc:
+            raise self._lost(Request("GET", "/v1/stream"), exc) from exc
 
 
 __all__ = [
     "CLIENT_HEADER",
+    "CLIENT_KEEP_ALIVE_S",
     "LAST_EVENT_ID_HEADER",
     "LEASE_HEADER",
     "AccessDenied",

@@ -44,6 +44,15 @@ SERVICE_UMASK = 0o027
 """Added to the process umask: nothing the service creates is readable by others, nor writable by its group."""
 
 
+SERVICE_KEEP_ALIVE_S = 75
+"""How long (s) the service keeps an idle connection: far past ``millctl.client.CLIENT_KEEP_ALIVE_S`` (the client's).
+
+uvicorn's default (5 s) equals httpx's: a client that reuses a connection idle for 5 s can send its request
+just as the service closes it, and get "Connection reset by peer" for a request that was never read.
+75 s is the common server default (nginx, gunicorn).
+"""
+
+
 class ServiceRunning(BusError):
     """Another service already serves this socket."""
 
@@ -65,6 +74,12 @@ class _Server(uvicorn.Server):
         if self.runtime.failed is not None:
             return True
         return await super().on_tick(counter)
+
+
+def server_config(app: ASGIApp) -> uvicorn.Config:
+    """The service's uvicorn settings: quiet, no lifespan, idle connections kept past the client's expiry."""
+    return uvicorn.Config(app, log_level="warning", lifespan="off", timeout_graceful_shutdown=2, access_log=False,
+                          timeout_keep_alive=SERVICE_KEEP_ALIVE_S)
 
 
 @contextlib.contextmanager
@@ -195,8 +210,7 @@ def _run(
     app: ASGIApp = create_app(runtime)
     if token is not None:
         app = TokenGuard(app, token)
-    config = uvicorn.Config(app, log_level="warning", lifespan="off", timeout_graceful_shutdown=2, access_log=False)
-    server = _Server(config, runtime)
+    server = _Server(server_config(app), runtime)
     received: list[str] = []
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -228,4 +242,13 @@ def _run(
     return int(ExitCode.INTERNAL) if failed else int(ExitCode.OK)
 
 
-__all__ = ["SERVICE_UMASK", "ServiceRunning", "bind_tcp", "bind_unix", "instance_lock", "serve"]
+__all__ = [
+    "SERVICE_KEEP_ALIVE_S",
+    "SERVICE_UMASK",
+    "ServiceRunning",
+    "bind_tcp",
+    "bind_unix",
+    "instance_lock",
+    "serve",
+    "server_config",
+]

@@ -142,3 +142,45 @@ async def test_the_stream_resumes_after_the_last_event_id(tmp_path: Path) -> Non
         assert client.last_event_id == 5
     finally:
         runtime.close()
+
+
+async def test_an_idle_connection_is_let_go_by_the_client_before_the_service_closes_it(tmp_path: Path) -> None:
+    """uvicorn's default keep-alive (5 s) equals httpx's: a request sent as the service closed the idle connection
+    met "Connection reset by peer" (vcan tier, a status read 5.7 s after the last). The service now outlives the
+    client by far, and both clients use the client's expiry."""
+    from millctl.client import CLIENT_KEEP_ALIVE_S, AsyncClient
+    from millctl.service.server import SERVICE_KEEP_ALIVE_S, server_config
+
+    runtime = ServiceRuntime(load_config(write_config(tmp_path)), embed_node=False)
+    assert server_config(create_app(runtime)).timeout_keep_alive == SERVICE_KEEP_ALIVE_S
+    assert SERVICE_KEEP_ALIVE_S >= 10 * CLIENT_KEEP_ALIVE_S
+    with Client(tmp_path / "s.sock") as sync:
+        assert sync._http._transport._pool._keepalive_expiry == CLIENT_KEEP_ALIVE_S  # type: ignore[attr-defined]
+    async with AsyncClient(tmp_path / "s.sock") as asynchronous:
+        pool = asynchronous._http._transport._pool  # type: ignore[attr-defined]
+        assert pool._keepalive_expiry == CLIENT_KEEP_ALIVE_S
+
+
+def _broken(error: type[httpx.TransportError]) -> httpx.MockTransport:
+    def answer(request: httpx.Request) -> httpx.Response:
+        raise error("[Errno 104] Connection reset by peer", request=request)
+
+    return httpx.MockTransport(answer)
+
+
+@pytest.mark.parametrize("error", [httpx.ReadError, httpx.WriteError])
+async def test_a_connection_broken_mid_request_says_the_outcome_is_unknown(
+    tmp_path: Path, error: type[httpx.TransportError]
+) -> None:
+    from millctl.client import AsyncClient
+
+    with Client(tmp_path / "s.sock") as sync, pytest.raises(ServiceUnavailable) as raised:
+        sync._http = httpx.Client(base_url=sync.base_url, transport=_broken(error))
+        sync.stop()
+    message = str(raised.value)
+    assert "POST /v1/stop" in message and "Connection reset by peer" in message and "unknown" in message
+    assert str(tmp_path / "s.sock") in message
+    async with AsyncClient(tmp_path / "s.sock") as asynchronous:
+        asynchronous._http = httpx.AsyncClient(base_url=asynchronous.base_url, transport=_broken(error))
+        with pytest.raises(ServiceUnavailable, match=r"GET /v1/status .*unknown"):
+            await asynchronous.status()
