@@ -404,7 +404,10 @@ class _Base:
             return ServiceUnavailable(f"no millctl service on socket {path} ({exc}); start it with `millctl serve`")
         return ServiceUnavailable(f"no millctl service at {self.base_url} ({exc}); start it with `millctl serve`")
 
-    def _lost(self, request: Request, exc: Exception) -> ServiceUnavailable:
+    def _failed(self, request: Request, exc: Exception) -> BusError:
+        """The error for a request the transport failed: the service is gone, or the connection broke mid-request."""
+        if not isinstance(exc, _LOST):
+            return self._unavailable(exc)
         return ServiceUnavailable(f"the connection to the millctl {self.where} broke during "
                                   f"{request.method} {request.path} ({exc}): whether it was carried out is unknown; "
                                   "see `millctl status` and `millctl events`")
@@ -416,9 +419,6 @@ class _Base:
     def _stream_request(self, count: int | None) -> dict[str, Any]:
         return {"params": {"count": count} if count else None, "headers": self._stream_headers(),
                 "timeout": httpx.Timeout(self.timeout_s, read=None)}
-
-
-_LIMITS = httpx.Limits(keepalive_expiry=CLIENT_KEEP_ALIVE_S)
 
 
 @functools.cache
@@ -435,6 +435,9 @@ _GONE = (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, Conne
 """What a missing or vanished service looks like to httpx."""
 _LOST = (httpx.ReadError, httpx.WriteError)
 """A connection broken mid-request: the service may or may not have carried the request out."""
+_FAILED = _GONE + _LOST
+_LIMITS = httpx.Limits(keepalive_expiry=CLIENT_KEEP_ALIVE_S)
+_STREAM = Request("GET", "/v1/stream")
 
 
 class Operations(_Base):
@@ -491,10 +494,8 @@ class Client(Operations):
         try:
             response = self._http.request(request.method, request.path, json=request.body, params=request.params,
                                           headers=self._headers())
-        except _GONE as exc:
-            raise self._unavailable(exc) from exc
-        except _LOST as exc:
-            raise self._lost(request, exc) from exc
+        except _FAILED as exc:
+            raise self._failed(request, exc) from exc
         return self._answer(op, response)
 
     @contextlib.contextmanager
@@ -513,7 +514,7 @@ class Client(Operations):
         Resumes after :attr:`last_event_id` when set (a reconnection misses no event).
         """
         try:
-            with connect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:
+            with connect_sse(self._http, _STREAM.method, _STREAM.path, **self._stream_request(count)) as source:
                 if source.response.status_code >= 400:
                     source.response.read()
                     raise_for_error(source.response, self.where)
@@ -521,10 +522,8 @@ class Client(Operations):
                     item = self._stream_item(sse)
                     if item is not None:
                         yield item
-        except _GONE as exc:
-            raise self._unavailable(exc) from exc
-        except _LOST as exc:
-            raise self._lost(Request("GET", "/v1/stream"), exc) from exc
+        except _FAILED as exc:
+            raise self._failed(_STREAM, exc) from exc
 
 
 class AsyncClient(Operations):
@@ -549,10 +548,8 @@ class AsyncClient(Operations):
         try:
             response = await self._http.request(request.method, request.path, json=request.body,
                                                 params=request.params, headers=self._headers())
-        except _GONE as exc:
-            raise self._unavailable(exc) from exc
-        except _LOST as exc:
-            raise self._lost(request, exc) from exc
+        except _FAILED as exc:
+            raise self._failed(request, exc) from exc
         return self._answer(op, response)
 
     @contextlib.asynccontextmanager
@@ -568,7 +565,7 @@ class AsyncClient(Operations):
     async def stream(self, count: int | None = None) -> AsyncGenerator[StreamItem, None]:
         """Live status and event items, as :meth:`Client.stream` (resuming after :attr:`last_event_id`)."""
         try:
-            async with aconnect_sse(self._http, "GET", "/v1/stream", **self._stream_request(count)) as source:
+            async with aconnect_sse(self._http, _STREAM.method, _STREAM.path, **self._stream_request(count)) as source:
                 if source.response.status_code >= 400:
                     await source.response.aread()
                     raise_for_error(source.response, self.where)
@@ -576,10 +573,8 @@ class AsyncClient(Operations):
                     item = self._stream_item(sse)
                     if item is not None:
                         yield item
-        except _GONE as exc:
-            raise self._unavailable(exc) from exc
-        except _LOST as exc:
-            raise self._lost(Request("GET", "/v1/stream"), exc) from exc
+        except _FAILED as exc:
+            raise self._failed(_STREAM, exc) from exc
 
 
 __all__ = [
