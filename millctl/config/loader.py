@@ -45,6 +45,10 @@ class LoadedConfig:
     sha256: str
 
 
+GENERIC_EDS = "cia402-drive.eds"
+"""The generic CiA 402 velocity drive's EDS shipped in ``config/`` and ``millctl/data``."""
+
+
 def packaged_file(name: str) -> Path:
     """Path of a data file shipped inside the package (``millctl/data``)."""
     return Path(str(resources.files("millctl.data").joinpath(name)))
@@ -113,8 +117,25 @@ def load_config(path: str | os.PathLike[str] | None = None) -> LoadedConfig:
     """Load and validate the mill configuration chosen by precedence."""
     chosen = resolve_config_path(path)
     data, raw = read_toml(chosen)
+    _resolve_eds_paths(data, chosen.parent)
     config = validate_as(MillConfig, data, str(chosen))
     return LoadedConfig(config=config, source=str(chosen), sha256=hashlib.sha256(raw).hexdigest())
+
+
+def _resolve_eds_paths(data: dict[str, Any], base: Path) -> None:
+    """Each CiA 402 drive's ``eds``: "" → the shipped generic EDS; a relative path → from the config's folder."""
+    drives = data.get("drives")
+    if not isinstance(drives, dict):
+        return
+    for motor in ("rotary", "vibration"):
+        drive = drives.get(motor)
+        cia402 = drive.get("cia402") if isinstance(drive, dict) else None
+        if not isinstance(cia402, dict):
+            continue
+        eds = cia402.get("eds", "")
+        if not isinstance(eds, str):
+            continue  # the model names the wrong type
+        cia402["eds"] = str(packaged_file(GENERIC_EDS)) if not eds else str(base / eds)
 
 
 def default_config() -> MillConfig:
@@ -124,6 +145,7 @@ def default_config() -> MillConfig:
 
 __all__ = [
     "ENV_VAR",
+    "GENERIC_EDS",
     "LoadedConfig",
     "default_config",
     "format_validation_errors",

@@ -27,25 +27,19 @@ from millctl.controller.overtake import RunOrders
 from millctl.controller.states import ControllerState, StateMachine, Transition
 from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
+from millctl.drives.base import DrivesBackend, LimitsState
+from millctl.drives.millbus import MillbusDrives
 from millctl.errors import InterlockError, InvalidInputError
 from millctl.protocol import (
-    AliveCounter,
-    BusReader,
     Codec,
-    Command,
     CommandCode,
     DriveTelemetry,
-    EStop,
     EStopSource,
     FaultCode,
     FaultFlag,
     FurnaceTelemetry,
-    Heartbeat,
-    MillMessage,
     NodeState,
     NodeStatus,
-    ProtocolError,
-    Setpoints,
     default_codec,
 )
 from millctl.protocol import ControllerState as WireState
@@ -88,17 +82,22 @@ class Controller:
         *,
         codec: Codec | None = None,
         listener: EventListener | None = None,
+        drives: DrivesBackend | None = None,
     ) -> None:
         self.config = config
         self.bus = bus
         self.clock = clock
         self.codec = codec or default_codec()
         self.listener = listener
+        self.drives: DrivesBackend = drives if drives is not None else MillbusDrives(bus, self.codec)
+        """The drives, through the one boundary the backends share (:mod:`millctl.drives.base`)."""
         self.envelope = Envelope.from_config(config)
         self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
-        self.tracker = TelemetryTracker(self.codec, config.interlock)
-        self.reader = BusReader(bus, "controller")
+        self.tracker = TelemetryTracker(
+            self.codec, config.interlock, e2e=self.drives.e2e, furnace=self.drives.has_furnace
+        )
+        self.reader = self.drives.reader
         self.bus_health = BusHealthMonitor(bus, config.bus.interface)
         self.monitor = MeasuredSpeedMonitor(self.envelope, config.interlock.debounce_samples)
         interlock = config.interlock
@@ -116,12 +115,13 @@ class Controller:
         self._estop_pending = False
         self._estop_sent_s = 0.0
         self.estops_sent = 0
-        self._counters: dict[type[MillMessage], AliveCounter] = {
-            kind: AliveCounter() for kind in (Heartbeat, Setpoints, Command)
-        }
+        self._counters = self.drives.counters if isinstance(self.drives, MillbusDrives) else {}
+        """The millbus wire's alive counters, per kind (empty on other backends)."""
         self.commanded = STANDSTILL
         self.trajectory: Trajectory | None = None
         self._trajectory_start_s = 0.0
+        self._limits_hold = False
+        """The trajectory waits at its start until the drives report its limits in force (SAFETY 28)."""
         self.furnace_target_c: float | None = None
         self.furnace_setpoint_c = config.furnace.ambient_temp_c
         self.heating_rate_c_per_min = config.furnace.max_heating_rate_c_per_min
@@ -180,22 +180,14 @@ class Controller:
         )
 
     # ------------------------------------------------------------------ wire
-    def _send(self, message: MillMessage) -> None:
-        counter = self._counters[type(message)].next() if type(message) in self._counters else 0
-        frame = self.codec.encode(message, counter)
-        try:
-            self.bus.send(frame)
-        except can.CanError as exc:
-            log.warning("bus send failed for %s: %s", type(message).__name__, exc)
-
     def _command(self, code: CommandCode, source: str, reason: str) -> None:
         """Send a command and await the node's confirmation of it (docs/safety.md#every-command-confirmed)."""
-        self._send(Command(code))
+        self.drives.command(code)
         self.confirmations.sent(code, source, reason, self.clock.now())
         self._emit(EventKind.COMMAND, source, f"{code.name}: {reason}", command=code.name)
 
     def _send_estop(self) -> None:
-        self._send(EStop(EStopSource.CONTROLLER))
+        self.drives.estop(EStopSource.CONTROLLER)
         self._estop_pending = True
         self._estop_sent_s = self.clock.now()
         self.estops_sent += 1
@@ -213,6 +205,7 @@ class Controller:
     def arm(self, source: str = "operator") -> None:
         """Ask the node to arm (from DISABLED, with a live heartbeat)."""
         self._require(Operation.ARM, "arm", source)
+        self.drives.prepare_move(None)
         self._command(CommandCode.ARM, source, "operator request")
 
     def disarm(self, source: str = "operator") -> None:
@@ -259,8 +252,10 @@ class Controller:
         except InterlockRefused as refused:
             self._emit(EventKind.REFUSAL, source, str(refused), rotary_rpm=rotary_rpm, vibration_rpm=vibration_rpm)
             raise
+        self.drives.prepare_move(move)
         self.trajectory = move
         self._trajectory_start_s = self.clock.now()
+        self._limits_hold = self.drives.limits_state() is not LimitsState.READY
         self._emit(
             EventKind.COMMAND,
             source,
@@ -348,7 +343,7 @@ class Controller:
 
     def estop(self, source: str = "operator") -> None:
         """Emergency stop: the E-stop frame at the highest priority, repeated until the node reports it; a trip."""
-        self._send(EStop(EStopSource.OPERATOR if source != "controller" else EStopSource.CONTROLLER))
+        self.drives.estop(EStopSource.OPERATOR if source != "controller" else EStopSource.CONTROLLER)
         self._estop_pending = True
         self._estop_sent_s = self.clock.now()
         self._emit(EventKind.COMMAND, source, "E-STOP")
@@ -425,17 +420,12 @@ class Controller:
 
     def _drain(self, now: float) -> None:
         """Read every frame waiting (SAFETY 22); bad input is counted by the reader, never raised (SAFETY 19)."""
-        batch = self.reader.drain()
+        batch = self.drives.drain(now)
         for error_frame in batch.error_frames:
             self._on_bus_condition(self.bus_health.on_error_frame(error_frame))
         self._on_bus_condition(self.bus_health.poll())
         # an E-stop from anyone is the node's to act on; it reports it in NodeStatus and we trip on that
-        for frame in batch.frames:
-            try:
-                decoded = self.codec.decode(frame)
-            except ProtocolError as exc:
-                self.reader.malformed(frame, exc)
-                continue
+        for decoded in batch.decoded:
             message = self.tracker.accept(decoded, now)
             if message is not None:
                 self.tracker.connected(now)
@@ -554,7 +544,9 @@ class Controller:
             if state is S.TRIPPED:
                 return
             cause = FaultCode(status.first_fault).name
-            self._trip(f"node fault {cause} (fault bits {status.fault_bits!r})", "node")
+            detail = self.drives.fault_detail()
+            self._trip(f"node fault {cause} (fault bits {status.fault_bits!r})" + (f": {detail}" if detail else ""),
+                       "node")
             return
         if state is S.DISCONNECTED:
             if node is NodeState.DISABLED:
@@ -622,7 +614,7 @@ class Controller:
     def _confirm_or_escalate(self, now: float) -> None:
         """Repeat what the node has not confirmed; escalate what it did not confirm in time; STOPPING's deadline."""
         for pending in self.confirmations.due(now):
-            self._send(Command(pending.code))
+            self.drives.command(pending.code)
             self.confirmations.sent(pending.code, pending.source, pending.reason, now)
             log.info("%s not yet confirmed by the node: sent again (%d)", pending.code.name, pending.sends)
         for pending in self.confirmations.expired(now):
@@ -658,6 +650,8 @@ class Controller:
             self._trip(what, "controller")
 
     def _advance(self, now: float, dt: float) -> None:
+        if self.trajectory is not None and self._limits_hold:
+            self._hold_for_limits(now)
         if self.trajectory is not None:
             elapsed = now - self._trajectory_start_s
             self.commanded = self.trajectory.at(elapsed)
@@ -671,6 +665,16 @@ class Controller:
             self.furnace_setpoint_c += math.copysign(min(abs(delta), step), delta)
         self.furnace_expectation.commanded(now, self._furnace_command())
 
+    def _hold_for_limits(self, now: float) -> None:
+        """Keep the trajectory at its start until the drives hold its limits; a refusal trips (SAFETY 28)."""
+        verdict = self.drives.limits_state()
+        if verdict is LimitsState.PENDING:
+            self._trajectory_start_s = now
+            return
+        self._limits_hold = False
+        if verdict is LimitsState.REFUSED:
+            self._trip(f"move refused: {self.drives.limits_error}", "drives")
+
     def _furnace_command(self) -> float | None:
         """The furnace setpoint the Setpoints frames carry now (°C, on the wire's grid); None: heater off."""
         if self.state in (S.ARMED, S.RUNNING) and self.furnace_target_c is not None:
@@ -680,7 +684,7 @@ class Controller:
     def _transmit(self, now: float) -> None:
         if now >= self._next_heartbeat_s:
             node = self.node_status  # echo its latest challenge: the node's proof this heartbeat is live
-            self._send(Heartbeat(_WIRE_STATE[self.state], node.challenge if node is not None else 0))
+            self.drives.heartbeat(_WIRE_STATE[self.state], node.challenge if node is not None else 0)
             self._next_heartbeat_s = max(self._next_heartbeat_s + self.config.timing.heartbeat_period_s, now)
         if now >= self._next_setpoints_s:
             self._next_setpoints_s = max(self._next_setpoints_s + self.config.timing.setpoint_period_s, now)
@@ -688,14 +692,11 @@ class Controller:
                 furnace_c = self._furnace_command()
                 snapped = self.planner.snap(self.commanded)
                 self.run_orders.setpoints_sent(now, snapped != STANDSTILL, self._node_state)
-                self._send(
-                    Setpoints(
-                        rotary_rpm=snapped.omega_r_rpm,
-                        vibration_rpm=snapped.omega_v_rpm,
-                        furnace_c=self.config.furnace.ambient_temp_c if furnace_c is None else furnace_c,
-                        heater_on=furnace_c is not None,
-                    )
+                self.drives.setpoints(
+                    snapped, self.config.furnace.ambient_temp_c if furnace_c is None else furnace_c,
+                    furnace_c is not None,
                 )
+        self.drives.periodic(now)
 
 
 __all__ = ["STANDSTILL_RPM", "CommandRefused", "Controller"]

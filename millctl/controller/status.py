@@ -113,8 +113,8 @@ def build_status(c: Controller) -> Status:
         shear_kpa=physics.shear_kpa if physics else None,
         link=c.tracker.health(now),
         invalid_frames=c.invalid_frames,
-        receive_errors=c.reader.counts.receive_errors + c.reader.counts.error_frames,
-        bus_receive=c.reader.counts.as_dict(),
+        receive_errors=c.drives.counts.receive_errors + c.drives.counts.error_frames,
+        bus_receive=c.drives.counts.as_dict(),
         bus_health=c.bus_health.health.as_dict(),
     )
 

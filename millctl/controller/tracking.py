@@ -57,8 +57,10 @@ class Track:
 class TelemetryTracker:
     """Classifies every node frame with E2E and keeps the freshest message of each kind."""
 
-    def __init__(self, codec: Codec, interlock: Interlock) -> None:
+    def __init__(self, codec: Codec, interlock: Interlock, *, e2e: bool = True, furnace: bool = True) -> None:
+        """``e2e``: the reports carry an E2E counter and CRC; ``furnace``: furnace telemetry is expected."""
         self.tracks: dict[type[MillMessage], Track] = {}
+        self.safety_relevant = tuple(k for k in SAFETY_RELEVANT if furnace or k is not FurnaceTelemetry)
         for kind in TRACKED:
             period = codec.cycle_time_s(kind) or 1.0
             receiver = (
@@ -68,7 +70,7 @@ class TelemetryTracker:
                     sequence_decay_frames=interlock.e2e_sequence_decay_frames,
                     min_decay_s=sequence_decay_s(interlock.e2e_sequence_decay_frames, period),
                 )
-                if kind.E2E
+                if kind.E2E and e2e
                 else None
             )
             bound = max(interlock.stale_periods * period, interlock.min_stale_s)
@@ -99,7 +101,7 @@ class TelemetryTracker:
     def stale(self, now_s: float) -> list[str]:
         """Why the safety-relevant telemetry is stale (empty when fresh)."""
         reasons = []
-        for kind in SAFETY_RELEVANT:
+        for kind in self.safety_relevant:
             track = self.tracks[kind]
             age = track.age_s(now_s)
             if not track.frames:
