@@ -16,10 +16,11 @@ import typing
 from collections.abc import Sequence
 from types import FrameType
 
+from firmware_sim.cia402.process import run_cia402
 from firmware_sim.node import Node
 from millctl.clock import MonotonicClock
 from millctl.config import load_config
-from millctl.config.models import Bus
+from millctl.config.models import Bus, DriveBackend
 from millctl.errors import ExitCode, MillctlError
 from millctl.protocol.factory import open_bus, open_estop_channel
 
@@ -48,12 +49,20 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--channel", help="bus channel (e.g. vcan0), overrides [bus].channel")
     parser.add_argument("--fault-injection", action="store_true", help="honour SimFault frames (0x700–0x7FF)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and injected faults")
+    parser.add_argument(
+        "--lie-readback",
+        action="append",
+        default=[],
+        metavar="MOTOR:INDEX",
+        help="CiA 402 drives, with --fault-injection: SDO reads of this object return what was written + 1 "
+        "(e.g. rotary:0x607F); repeatable",
+    )
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     return parser
 
 
 class _Stop:
-    """Set by SIGINT/SIGTERM."""
+    """Set by SIGINT/SIGTERM (``requested``)."""
 
     def __init__(self) -> None:
         self.requested = False
@@ -136,6 +145,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = _Stop()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
+    if config.drives.backend is DriveBackend.CIA402:
+        if estop_bus is not None:
+            estop_bus.shutdown()
+        return run_cia402(config, bus, bus_config, args, stop)
+    if args.lie_readback:
+        bus.shutdown()
+        if estop_bus is not None:
+            estop_bus.shutdown()
+        log.error("--lie-readback needs CiA 402 drives ([drives] backend = \"cia402\")")
+        return int(ExitCode.INVALID_INPUT)
     node = Node(
         config, bus, MonotonicClock(), fault_injection=args.fault_injection, seed=args.seed, estop_bus=estop_bus
     )

@@ -122,10 +122,10 @@ class ServiceRuntime:
         self.node: Any = None
         self._node_bus: can.BusABC | None = None
         if embeds_node(config, embed_node):
-            from firmware_sim.node import Node
+            from firmware_sim.embedded import simulated_mill  # the millbus node or the CiA 402 drives
 
             self._node_bus = open_bus(config.bus)
-            self.node = Node(config, self._node_bus, self.clock, fault_injection=fault_injection)
+            self.node = simulated_mill(config, self._node_bus, self.clock, fault_injection=fault_injection)
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
         self._halt = threading.Event()
         self._closed = False
