@@ -29,6 +29,7 @@ from millctl.controller.status import Status, build_status
 from millctl.controller.tracking import TelemetryTracker
 from millctl.drives.base import DrivesBackend, LimitsState
 from millctl.drives.millbus import MillbusDrives
+from millctl.drives.registry import open_drives
 from millctl.errors import InterlockError, InvalidInputError
 from millctl.protocol import (
     Codec,
@@ -89,9 +90,9 @@ class Controller:
         self.clock = clock
         self.codec = codec or default_codec()
         self.listener = listener
-        self.drives: DrivesBackend = drives if drives is not None else MillbusDrives(bus, self.codec)
-        """The drives, through the one boundary the backends share (:mod:`millctl.drives.base`)."""
         self.envelope = Envelope.from_config(config)
+        self.drives: DrivesBackend = drives if drives is not None else open_drives(config, bus, self.codec, self.envelope)
+        """The drives, through the one boundary the backends share (:mod:`millctl.drives.base`)."""
         self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
         self.tracker = TelemetryTracker(

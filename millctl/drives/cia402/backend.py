@@ -1,0 +1,203 @@
+"""The CiA 402 backend: two standard CANopen drives, one per motor, behind the drives boundary.
+
+python-canopen's ``Network`` runs on the controller's own can.Bus without a
+notifier thread of its own: the tick drains the bus through the boundary's
+:class:`~millctl.protocol.BusReader` and hands every frame to
+``Network.notify``, so TPDOs, heartbeats and EMCYs are judged in the tick with
+their age, and the SDO client (on the worker of :mod:`.sdo_jobs`) gets its
+answers from there. The two drives are reported to the controller as one
+node (:mod:`.report`), so the controller judges them exactly as it judges the
+millbus node: same confirmations, same escalations, same trips.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import struct
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import can
+import canopen
+
+from millctl.config.models import Cia402Mode, MillConfig
+from millctl.drives.base import DriveInfo, DrivesBackend, DrivesBatch, LimitsState
+from millctl.drives.cia402.limits import drive_limits
+from millctl.drives.cia402.report import DriveLink, Intent, NodeReport
+from millctl.drives.cia402.sdo_jobs import start_up, write_all
+from millctl.drives.cia402.state402 import Power, PowerMachine
+from millctl.protocol import CommandCode, EStopSource
+from millctl.protocol import ControllerState as WireState
+from millctl.safety import Envelope, SpeedPoint, Trajectory
+
+log = logging.getLogger(__name__)
+
+NMT_OPERATIONAL = 0x05
+"""The heartbeat state byte the controller produces (it is operational while it ticks)."""
+
+DRIVE_HEARTBEAT_S = 0.1
+"""The drives' own heartbeat period (0x1017, ms/1000): the shipped EDS's default."""
+
+
+class Cia402Drives(DrivesBackend):
+    """Two CiA 402 drives on the controller's bus (``[drives] backend = "cia402"``)."""
+
+    backend = "cia402"
+    e2e = False  # CANopen carries no counter or CRC (docs/safety.md#cia-402-drives)
+    has_furnace = False
+
+    def __init__(self, config: MillConfig, bus: can.BusABC, envelope: Envelope) -> None:
+        super().__init__(bus)
+        self.config = config
+        self.envelope = envelope
+        drives = config.drives
+        self.controller_id = drives.controller_node_id
+        self.network = canopen.Network(bus)
+        interlock = config.interlock
+        stale_s = max(interlock.stale_periods * 0.05, interlock.min_stale_s)
+        self.links: dict[str, DriveLink] = {}
+        for motor in ("rotary", "vibration"):
+            drive = getattr(drives, motor)
+            cia = drive.cia402
+            assert cia is not None  # the config's validator requires it with backend = "cia402"
+            node = self.network.add_node(cia.node_id, cia.eds)
+            link = DriveLink(motor, drive, cia, node, PowerMachine(interlock.command_confirm_s, stale_s),
+                             heartbeat_stale_s=max(3 * DRIVE_HEARTBEAT_S, interlock.min_stale_s))
+            self.links[motor] = link
+            self.network.subscribe(0x180 + cia.node_id, link.on_tpdo)
+            self.network.subscribe(0x700 + cia.node_id, link.on_heartbeat)
+            self.network.subscribe(0x80 + cia.node_id, link.on_emcy)
+            for foreign in (0x200 + cia.node_id, 0x600 + cia.node_id):
+                self.network.subscribe(foreign, self._on_foreign)
+        for foreign in (0x000, 0x700 + self.controller_id):
+            self.network.subscribe(foreign, self._on_foreign)
+        self.report = NodeReport(list(self.links.values()), interlock.command_confirm_s)
+        self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cia402-sdo")
+        self._startup: Future[list[str]] | None = None
+        self._limits: Future[str] | None = None
+        self._setpoint_period_s = config.timing.setpoint_period_s
+        self._next_rpdo_s = -math.inf
+        self._sent_words: dict[str, int] = {}
+
+    # -- reading
+    def _drain(self, now_s: float) -> DrivesBatch:
+        batch = self.reader.drain()
+        self.report.now_s = now_s
+        for frame in batch.frames:
+            if frame.is_extended_id or frame.is_remote_frame:
+                continue
+            self.network.notify(frame.arbitration_id, bytearray(frame.data), now_s)
+        return DrivesBatch(self.report.emit(now_s), batch.error_frames)
+
+    def _on_foreign(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """A frame only the controller sends, heard on the bus: another sender (SAFETY 17 on CANopen)."""
+        self.report.second_sender(can_id, bytes(data))
+
+    def _describe(self) -> list[DriveInfo]:
+        return [link.info(self.report.now_s) for link in self.links.values()]
+
+    def fault_detail(self) -> str:
+        """The first cause the drives' report latched."""
+        return self.report.cause
+
+    # -- sending
+    def _command(self, code: CommandCode) -> None:
+        now = self.report.now_s
+        if code is CommandCode.ARM:
+            self.report.intent = Intent.ENABLED
+        elif code is CommandCode.DISARM:
+            self.report.intent = Intent.DISABLED
+        elif code is CommandCode.STOP:
+            self.report.stop(now)
+        elif code is CommandCode.RESET:
+            self.report.reset(now)
+        self._steer(now)
+        self._send_rpdos(now)
+
+    def _estop(self, source: EStopSource) -> None:
+        now = self.report.now_s
+        self.report.estop(now)
+        self._steer(now)
+        self._send_rpdos(now)
+
+    def _heartbeat(self, state: WireState, challenge: int) -> None:
+        self.network.send_message(0x700 + self.controller_id, bytes([NMT_OPERATIONAL]))
+
+    def _setpoints(self, speeds: SpeedPoint, furnace_c: float, heater_on: bool) -> None:
+        self.report.setpoints(speeds.omega_r_rpm, speeds.omega_v_rpm)
+        self._send_rpdos(self.report.now_s)
+
+    def _periodic(self, now_s: float) -> None:
+        self.report.now_s = now_s
+        if self._startup is None and self.report.all_heard(now_s) and not self.report.started:
+            self._startup = self._jobs.submit(self._start_up)
+        if self._startup is not None and self._startup.done():
+            refusals = self._startup.result()
+            self._startup = None
+            self.report.started_up([r for r in refusals if r])
+        self._steer(now_s)
+        if now_s >= self._next_rpdo_s or any(
+            self._sent_words.get(m) != link.power.controlword(now_s) for m, link in self.links.items()
+        ):
+            self._send_rpdos(now_s)
+
+    def _steer(self, now_s: float) -> None:
+        """Each drive's wanted power state from the report's intent; the limits hold the enabling."""
+        self.report.steer(now_s, limits_ready=self.limits_state() is LimitsState.READY,
+                          limits_error=self.limits_error)
+
+    def _send_rpdos(self, now_s: float) -> None:
+        """RPDO1 to each drive: controlword + target velocity (sent every setpoint period in every state)."""
+        self._next_rpdo_s = now_s + self._setpoint_period_s
+        for motor, link in self.links.items():
+            word = link.power.controlword(now_s)
+            self._sent_words[motor] = word
+            velocity = link.target_units if link.power.wanted is Power.OPERATION_ENABLED else 0
+            if link.cia.mode is Cia402Mode.VELOCITY:
+                data = struct.pack("<Hh", word, max(min(velocity, 32767), -32768))
+            else:
+                data = struct.pack("<Hi", word, velocity)
+            self.network.send_message(0x200 + link.cia.node_id, data)
+
+    # -- the SDO work
+    def _start_up(self) -> list[str]:
+        consumer_ms = max(round(self.config.timing.watchdog_timeout_s * 1000), 1)
+        results = []
+        for link in self.links.values():
+            refusal, identity = start_up(link.motor, link.node, link.cia.mode, self.controller_id, consumer_ms)
+            link.identity = identity
+            results.append(refusal)
+        return results
+
+    def _prepare_move(self, move: Trajectory | None) -> None:
+        plan = {m: drive_limits(m, link.drive, link.cia, self.envelope, move) for m, link in self.links.items()}
+        self._limits = self._jobs.submit(self._write_limits, plan)
+
+    def _write_limits(self, plan: dict[str, list]) -> str:  # type: ignore[type-arg]
+        for motor, limits in plan.items():
+            refusal = write_all(motor, self.links[motor].node, limits)
+            if refusal:
+                return refusal
+        return ""
+
+    def limits_state(self) -> LimitsState:
+        """READY once every drive holds the limits written last; REFUSED on a differing read-back."""
+        if self._limits is None:
+            return LimitsState.PENDING
+        if not self._limits.done():
+            return LimitsState.PENDING
+        return LimitsState.REFUSED if self._limits.result() else LimitsState.READY
+
+    @property
+    def limits_error(self) -> str:
+        """The refusal of the last limits (object, written and read values, drive)."""
+        if self._limits is None or not self._limits.done():
+            return ""
+        return self._limits.result()
+
+    def close(self) -> None:
+        """Stop the SDO worker (a transfer under way ends at its timeout); the bus is the caller's."""
+        self._jobs.shutdown(wait=False, cancel_futures=True)
+
+
+__all__ = ["Cia402Drives"]
