@@ -91,7 +91,9 @@ class Controller:
         self.codec = codec or default_codec()
         self.listener = listener
         self.envelope = Envelope.from_config(config)
-        self.drives: DrivesBackend = drives if drives is not None else open_drives(config, bus, self.codec, self.envelope)
+        self.drives: DrivesBackend = (
+            drives if drives is not None else open_drives(config, bus, self.codec, self.envelope)
+        )
         """The drives, through the one boundary the backends share (:mod:`millctl.drives.base`)."""
         self.planner = RampPlanner.from_config(config, self.envelope)
         self.machine = StateMachine(clock.now, self._on_transition)
