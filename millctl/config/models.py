@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from millctl.config.bus import Bus
 from millctl.units import rpm_to_rad_s
@@ -207,13 +207,25 @@ class FurnaceBackend(enum.StrEnum):
 _Finite = Annotated[float, Field(gt=0.0, le=1e9, allow_inf_nan=False)]
 
 
+def _node_id_in_range(value: int) -> int:
+    if not 1 <= value <= 127:
+        raise ValueError(
+            f"CANopen node ID {value} is outside 1–127 (bound: 1 ≤ node_id ≤ 127; 0 addresses every node, "
+            "128 and up do not exist; docs/deployment.md#standard-cia-402-drives)"
+        )
+    return value
+
+
+_NodeId = Annotated[int, AfterValidator(_node_id_in_range)]
+
+
 class Cia402Drive(_Strict):
     """One CiA 402 drive on the bus: its node ID, its object dictionary, its velocity scaling and mode.
 
     Wire value = round(mill rpm × ``gear_ratio`` × ``units_per_rpm``).
     """
 
-    node_id: Annotated[int, Field(ge=1, le=127)]
+    node_id: _NodeId
     """CANopen node ID (1–127), distinct from the other drive's and the controller's."""
     eds: str = ""
     """The drive's EDS file ("" = the shipped generic ``cia402-drive.eds``; relative to the config file)."""
@@ -261,7 +273,7 @@ class Drives(_Strict):
     backend: DriveBackend = DriveBackend.MILLBUS
     rotary: Drive
     vibration: Drive
-    controller_node_id: Annotated[int, Field(ge=1, le=127)] = 1
+    controller_node_id: _NodeId = 1
     """The controller's CANopen node ID (CiA 402 backend): its heartbeat is sent at 0x700 + this."""
     furnace: FurnaceBackend = FurnaceBackend.NONE
     """CiA 402 backend: the furnace beside the drives; only "none" (cold milling) is driven today."""

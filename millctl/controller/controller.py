@@ -125,6 +125,8 @@ class Controller:
         self._trajectory_start_s = 0.0
         self._limits_hold = False
         """The trajectory waits at its start until the drives report its limits in force (SAFETY 28)."""
+        self._arm_source: str | None = None
+        """Who asked to arm, while the ARM waits for the drives' limits (None: no ARM waiting)."""
         self.furnace_target_c: float | None = None
         self.furnace_setpoint_c = config.furnace.ambient_temp_c
         self.heating_rate_c_per_min = config.furnace.max_heating_rate_c_per_min
@@ -209,7 +211,11 @@ class Controller:
         """Ask the node to arm (from DISABLED, with a live heartbeat)."""
         self._require(Operation.ARM, "arm", source)
         self.drives.prepare_move(None)
-        self._command(CommandCode.ARM, source, "operator request")
+        if self.drives.limits_state() is LimitsState.READY:
+            self._command(CommandCode.ARM, source, "operator request")
+            return
+        self._arm_source = source  # sent once the drives hold their limits (SAFETY 28)
+        self._emit(EventKind.COMMAND, source, "arm: the drives' limits are being written and read back first")
 
     def disarm(self, source: str = "operator") -> None:
         """Ask the node to disarm (from ARMED at standstill)."""
@@ -653,6 +659,8 @@ class Controller:
             self._trip(what, "controller")
 
     def _advance(self, now: float, dt: float) -> None:
+        if self._arm_source is not None:
+            self._arm_when_limits_hold()
         if self.trajectory is not None and self._limits_hold:
             self._hold_for_limits(now)
         if self.trajectory is not None:
@@ -667,6 +675,19 @@ class Controller:
             delta = self.furnace_target_c - self.furnace_setpoint_c
             self.furnace_setpoint_c += math.copysign(min(abs(delta), step), delta)
         self.furnace_expectation.commanded(now, self._furnace_command())
+
+    def _arm_when_limits_hold(self) -> None:
+        """Send the waiting ARM once the drives hold their limits; refuse it when a drive does not."""
+        verdict, source = self.drives.limits_state(), self._arm_source or "operator"
+        if verdict is LimitsState.PENDING and self.state is S.DISABLED:
+            return
+        self._arm_source = None
+        if self.state is not S.DISABLED:
+            return  # a trip or a lost node overtook it: the ARM is void
+        if verdict is LimitsState.REFUSED:
+            self._emit(EventKind.REFUSAL, source, f"arm refused: {self.drives.limits_error}")
+            return
+        self._command(CommandCode.ARM, source, "operator request")
 
     def _hold_for_limits(self, now: float) -> None:
         """Keep the trajectory at its start until the drives hold its limits; a refusal trips (SAFETY 28)."""

@@ -83,6 +83,8 @@ class Cia402Drives(DrivesBackend):
     def _drain(self, now_s: float) -> DrivesBatch:
         batch = self.reader.drain()
         self.report.now_s = now_s
+        if batch.estop:  # ID 0x000, millbus's E-stop, is CANopen's NMT: only the controller sends it
+            self.report.second_sender(0x000, b"")
         for frame in batch.frames:
             if frame.is_extended_id or frame.is_remote_frame:
                 continue
