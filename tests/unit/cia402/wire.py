@@ -17,6 +17,7 @@ import can
 from firmware_sim.cia402 import Cia402Mill
 from millctl.clock import ManualClock
 from millctl.config import MillConfig
+from millctl.config.loader import GENERIC_EDS, packaged_file
 
 ROTARY_ID = 2
 VIBRATION_ID = 3
@@ -36,6 +37,7 @@ def cia402_config(config: MillConfig, *, mode: str = "profile-velocity") -> Mill
     for motor, node_id in (("rotary", ROTARY_ID), ("vibration", VIBRATION_ID)):
         drives[motor]["cia402"] = {
             "node_id": node_id,
+            "eds": str(packaged_file(GENERIC_EDS)),
             "units_per_rpm": UNITS_PER_RPM,
             "gear_ratio": GEAR_RATIO,
             "mode": mode,
