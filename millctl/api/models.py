@@ -95,6 +95,15 @@ class BusHealthOut(Strict):
     last_error: str = Field(description="the latest error frame or state reading, in words (empty before the first)")
 
 
+class DriveOut(Strict):
+    """One drive in its backend's words (CiA 402: its power state, NMT state, heartbeat, identity, EMCY)."""
+
+    name: str = Field(description="the motor it drives: rotary or vibration")
+    state: str = Field(description="its CiA 402 power state (statusword 0x6041), or unknown")
+    node_id: int | None = Field(default=None, description="its CANopen node ID, null on millbus")
+    detail: str = Field(default="", description="NMT state, heartbeat age, identity 0x1018, first EMCY")
+
+
 class StatusOut(Strict):
     """A snapshot of the controller (as :class:`millctl.controller.Status`; non-finite floats as null)."""
 
@@ -135,6 +144,9 @@ class StatusOut(Strict):
     receive_errors: int = Field(description="failed reads and CAN error frames, counted and skipped")
     bus_receive: BusReceiveOut = Field(description="every count of the controller's bus reader")
     bus_health: BusHealthOut = Field(description="the CAN controller's condition and error counts")
+    drives_backend: str = Field(default="millbus", description="what the drives are behind: millbus or cia402")
+    drives: list[DriveOut] = Field(default_factory=list, description="each drive in its backend's words "
+                                   "(empty on millbus, where node_state is the drives' state)")
 
 
 # ---------------------------------------------------------------- envelope
@@ -466,6 +478,7 @@ __all__ = [
     "CheckRequest",
     "CommandOut",
     "ControlOut",
+    "DriveOut",
     "EnvelopeOut",
     "EnvelopePoint",
     "ErrorBody",

@@ -159,6 +159,9 @@ def render_status(
     s = status
     state = s.state + (f" — {s.trip_cause}" if s.trip_cause else "")
     table.add_row("state", f"{state}   node {s.node_state or '—'} {' '.join(s.node_faults)}")
+    if s.drives:  # drives with their own state machine (CiA 402): each one's power state, in its words
+        table.add_row("drives", f"{s.drives_backend}: " + "; ".join(
+            f"{d.name} (node {d.node_id}) {d.state}" + (f" — {d.detail}" if d.detail else "") for d in s.drives))
     if control is not None:
         holder = control.holder or "nobody"
         table.add_row("control", holder + (" (lease expired)" if control.expired else ""))

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from millctl.protocol import FaultCode, FaultFlag, PhysicsTelemetry, RefusalCode
@@ -59,6 +59,10 @@ class Status:
     """Every count of the controller's bus reader (:class:`millctl.protocol.ReceiveCounts`)."""
     bus_health: dict[str, int | str | None]
     """The CAN controller's condition and error counts (:class:`millctl.protocol.bus_health.BusHealth`)."""
+    drives_backend: str = "millbus"
+    """What the drives are behind (``[drives] backend``)."""
+    drives: list[dict[str, Any]] = field(default_factory=list)
+    """Each drive in its backend's words (:class:`millctl.drives.DriveInfo`; empty on millbus)."""
 
     def as_dict(self) -> dict[str, Any]:
         """The snapshot as a JSON-ready dict."""
@@ -116,6 +120,8 @@ def build_status(c: Controller) -> Status:
         receive_errors=c.drives.counts.receive_errors + c.drives.counts.error_frames,
         bus_receive=c.drives.counts.as_dict(),
         bus_health=c.bus_health.health.as_dict(),
+        drives_backend=c.drives.backend,
+        drives=[asdict(info) for info in c.drives.describe()],
     )
 
 
