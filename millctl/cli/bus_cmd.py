@@ -107,7 +107,10 @@ def _check(args: argparse.Namespace) -> int:
     from millctl.protocol import default_codec, open_bus
     from millctl.protocol.bus_check import check_bus
 
-    bus_config = load_config(args.config).config.bus
+    config = load_config(args.config).config
+    bus_config = config.bus
+    if config.drives.backend == "cia402":
+        return _check_cia402(args, config)
     bus = open_bus(bus_config)
     try:
         report = check_bus(bus_config, bus, default_codec(), args.listen_s)
@@ -138,6 +141,43 @@ def _check(args: argparse.Namespace) -> int:
         node = (f"present: NodeStatus after {report.node_status_after_s:.2f} s, state {report.node_state}, first "
                 f"fault {report.node_first_fault}") if report.node_present else "ABSENT"
         out.print(f"node     {node} ({report.frames} frames in {report.listened_s:.2f} s)", markup=False)
+    for problem in report.problems:
+        stderr_console().print(f"problem: {problem}", markup=False, style="bold red")
+    return int(ExitCode.OK if report.ok else ExitCode.BUS)
+
+
+def _check_cia402(args: argparse.Namespace, config: Any) -> int:
+    """``bus check`` on CiA 402 drives: NMT state, identity 0x1018 against the EDS, mode, the limits they hold."""
+    from millctl.drives.cia402.check import check_drives
+    from millctl.protocol import open_bus
+
+    bus = open_bus(config.bus)
+    try:
+        report = check_drives(config, bus, args.listen_s)
+    finally:
+        bus.shutdown()
+    if args.json:
+        from millctl.cli.failures import EXIT_NAMES
+
+        error = None if report.ok else {"code": EXIT_NAMES[ExitCode.BUS], "message": "; ".join(report.problems),
+                                        "exit_code": int(ExitCode.BUS)}
+        print_json(args, report.as_dict(), error)
+    else:
+        out = stdout_console()
+        bus_config = config.bus
+        out.print(f"bus      {bus_config.interface}:{bus_config.channel}, configured {bus_config.bitrate_bit_s} bit/s, "
+                  "CiA 402 drives", markup=False)
+        for drive in report.drives:
+            ident = drive.identity
+            shown = (f"vendor 0x{ident['vendor_id']:08X} product 0x{ident['product_code']:08X} revision "
+                     f"0x{ident['revision']:08X} serial {ident['serial']}, EDS "
+                     f"{'matches' if drive.eds_match else 'DOES NOT MATCH'}") if ident else "identity unread"
+            out.print(f"{drive.motor:<9}node {drive.node_id}, NMT {drive.nmt_state}, {shown}", markup=False)
+            for where, values in drive.limits.items():
+                held = values["drive_holds"]
+                same = "" if held == values["millctl_writes"] else "  (millctl writes it before arming)"
+                out.print(f"           {where}: holds {held if held is not None else '—'}, millctl writes "
+                          f"{values['millctl_writes']}{same}", markup=False)
     for problem in report.problems:
         stderr_console().print(f"problem: {problem}", markup=False, style="bold red")
     return int(ExitCode.OK if report.ok else ExitCode.BUS)

@@ -51,7 +51,8 @@ class Identity:
                 f"revision 0x{self.revision:08X}, serial {self.serial}")
 
 
-def _var(node: canopen.RemoteNode, index: int, subindex: int) -> SdoVariable:
+def sdo_var(node: canopen.RemoteNode, index: int, subindex: int) -> SdoVariable:
+    """The SDO variable at (index, subindex) of a drive."""
     entry = node.sdo[index]
     if isinstance(entry, (SdoRecord, SdoArray)):
         return entry[subindex]
@@ -63,7 +64,7 @@ def write_checked(motor: str, node: canopen.RemoteNode, limit: LimitObject) -> s
     """Write one object and read it back: "" when it holds, else the refusal in words."""
     node_id = int(node.id or 0)
     try:
-        var = _var(node, limit.index, limit.subindex)
+        var = sdo_var(node, limit.index, limit.subindex)
         var.raw = limit.value
         got = var.raw
     except (SdoError, KeyError) as exc:
@@ -137,5 +138,15 @@ def start_up(motor: str, node: canopen.RemoteNode, mode: Cia402Mode, controller_
     return "", identity
 
 
-__all__ = ["ACTUAL_OBJECT", "MODE_OF_OPERATION", "TARGET_OBJECT", "Identity", "map_pdos", "read_identity",
-           "start_up", "write_all", "write_checked"]
+__all__ = [
+    "ACTUAL_OBJECT",
+    "MODE_OF_OPERATION",
+    "TARGET_OBJECT",
+    "Identity",
+    "map_pdos",
+    "read_identity",
+    "sdo_var",
+    "start_up",
+    "write_all",
+    "write_checked",
+]
