@@ -63,6 +63,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     convert.add_argument("input", help="bus log to read")
     convert.add_argument("output", help="file to write; its suffix picks the format")
     convert.set_defaults(handler=_convert)
+    from millctl.cli.bus_view_cmd import add_view_commands
+
+    add_view_commands(sub, log_sub)
     check = sub.add_parser(
         "check",
         help="is the configured bus up, at its bitrate, healthy, and does the node answer? (exit 0 yes, 3 no)",
