@@ -120,3 +120,14 @@ def test_drives_that_stop_answering_trip_the_controller_as_stale(rig: Rig402) ->
     rig.sim.tick = lambda: None  # type: ignore[method-assign]  # the drives fall silent
     assert rig.run(5.0, lambda: rig.controller.state is S.TRIPPED)
     assert "NodeStatus stale" in rig.controller.trip_cause
+
+
+def test_a_controller_that_stops_ticking_is_stopped_by_the_drives_own_heartbeat_consumer(rig: Rig402) -> None:
+    rig.arm()
+    rig.controller.set_speeds(100.0, 300.0)
+    assert rig.run(60.0, lambda: rig.controller.trajectory is None)
+    rig.controller.tick = lambda: None  # type: ignore[method-assign]  # the controller is gone: no heartbeat, no RPDO
+    consumer_s = rig.config.timing.watchdog_timeout_s
+    rig.run(consumer_s + 0.1)  # the consumer time, and one drive tick to react
+    assert all(d.state.name == "QUICK_STOP_ACTIVE" for d in rig.sim.drives.values())
+    assert rig.run(30.0, lambda: rig.sim.at_standstill)
