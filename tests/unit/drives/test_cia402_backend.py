@@ -131,3 +131,10 @@ def test_a_controller_that_stops_ticking_is_stopped_by_the_drives_own_heartbeat_
     rig.run(consumer_s + 0.1)  # the consumer time, and one drive tick to react
     assert all(d.state.name == "QUICK_STOP_ACTIVE" for d in rig.sim.drives.values())
     assert rig.run(30.0, lambda: rig.sim.at_standstill)
+
+
+def test_a_drive_whose_heartbeat_stops_while_its_tpdos_go_on_trips_naming_it(rig: Rig402) -> None:
+    rig.arm()
+    rig.sim.drives["vibration"].store(0x1017, 0, 0)  # its producer heartbeat off: TPDOs still flow
+    assert rig.run(5.0, lambda: rig.controller.state is S.TRIPPED)
+    assert "vibration drive (node 3) heartbeat stale" in rig.controller.trip_cause
