@@ -25,15 +25,18 @@ from millctl.drives.base import DriveInfo, DrivesBackend, DrivesBatch, LimitsSta
 from millctl.drives.cia402.limits import drive_limits
 from millctl.drives.cia402.report import DriveLink, Intent, NodeReport
 from millctl.drives.cia402.sdo_jobs import start_up, write_all
-from millctl.drives.cia402.state402 import Power, PowerMachine
-from millctl.protocol import CommandCode, EStopSource
+from millctl.drives.cia402.state402 import PowerMachine
+from millctl.protocol import CommandCode, EStopSource, FaultFlag
 from millctl.protocol import ControllerState as WireState
-from millctl.safety import Envelope, SpeedPoint, Trajectory
+from millctl.safety import Envelope, RampPlanner, SpeedPoint, Trajectory
 
 log = logging.getLogger(__name__)
 
 NMT_OPERATIONAL = 0x05
 """The heartbeat state byte the controller produces (it is operational while it ticks)."""
+
+STARTUP_RETRY_S = 5.0
+"""A start-up a drive refused is tried again after this long (s; the refusal is in the drive's status detail)."""
 
 DRIVE_HEARTBEAT_S = 0.1
 """The drives' own heartbeat period (0x1017, ms/1000): the shipped EDS's default."""
@@ -71,12 +74,14 @@ class Cia402Drives(DrivesBackend):
                 self.network.subscribe(foreign, self._on_foreign)
         for foreign in (0x000, 0x700 + self.controller_id):
             self.network.subscribe(foreign, self._on_foreign)
-        self.report = NodeReport(list(self.links.values()), interlock.command_confirm_s)
+        self.report = NodeReport(list(self.links.values()), interlock.command_confirm_s,
+                                 RampPlanner.from_config(config, envelope))
         self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cia402-sdo")
         self._startup: Future[list[str]] | None = None
         self._limits: Future[str] | None = None
         self._setpoint_period_s = config.timing.setpoint_period_s
         self._next_rpdo_s = -math.inf
+        self._startup_retry_s = -math.inf
         self._sent_words: dict[str, int] = {}
 
     # -- reading
@@ -131,12 +136,24 @@ class Cia402Drives(DrivesBackend):
 
     def _periodic(self, now_s: float) -> None:
         self.report.now_s = now_s
-        if self._startup is None and self.report.all_heard(now_s) and not self.report.started:
+        restarted = [link for link in self.links.values() if link.restarted]
+        if restarted and self.report.started:  # it lost its configuration: latched, and configured again
+            for link in restarted:
+                self.report.latch(FaultFlag.DRIVE, f"{link.name} restarted (boot-up heard): it lost its "
+                                  "configuration and is configured again; reset to go on")
+            self.report.started = False
+        if (self._startup is None and not self.report.started and self.report.all_heard(now_s)
+                and now_s >= self._startup_retry_s):
             self._startup = self._jobs.submit(self._start_up)
         if self._startup is not None and self._startup.done():
-            refusals = self._startup.result()
+            refusals = [r for r in self._startup.result() if r]
             self._startup = None
-            self.report.started_up([r for r in refusals if r])
+            if refusals:  # shown in each drive's detail (status, TUI); tried again after a pause
+                log.warning("CiA 402 start-up refused, trying again in %.0f s: %s", STARTUP_RETRY_S,
+                            "; ".join(refusals))
+                self._startup_retry_s = now_s + STARTUP_RETRY_S
+            else:
+                self.report.started_up()
         self._steer(now_s)
         if now_s >= self._next_rpdo_s or any(
             self._sent_words.get(m) != link.power.controlword(now_s) for m, link in self.links.items()
@@ -154,7 +171,7 @@ class Cia402Drives(DrivesBackend):
         for motor, link in self.links.items():
             word = link.power.controlword(now_s)
             self._sent_words[motor] = word
-            velocity = link.target_units if link.power.wanted is Power.OPERATION_ENABLED else 0
+            velocity = self.report.velocity_units(link, now_s)
             if link.cia.mode is Cia402Mode.VELOCITY:
                 data = struct.pack("<Hh", word, max(min(velocity, 32767), -32768))
             else:
@@ -167,7 +184,7 @@ class Cia402Drives(DrivesBackend):
         results = []
         for link in self.links.values():
             refusal, identity = start_up(link.motor, link.node, link.cia.mode, self.controller_id, consumer_ms)
-            link.identity = identity
+            link.identity, link.startup_error = identity, refusal
             results.append(refusal)
         return results
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import enum
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import canopen
 
@@ -25,6 +25,7 @@ from millctl.drives.base import DriveInfo
 from millctl.drives.cia402.sdo_jobs import Identity
 from millctl.drives.cia402.state402 import Power, PowerMachine, quick_stop_shown
 from millctl.protocol import NO_FAULTS, Decoded, DriveTelemetry, FaultCode, FaultFlag, NodeState, NodeStatus
+from millctl.safety import RampPlanner, SpeedPoint, Trajectory
 
 STANDSTILL_RPM = 1.0
 """A drive slower than this is at standstill (rpm; the controller's own bound)."""
@@ -57,6 +58,8 @@ class DriveLink:
     emcy: str = ""
     restarted: bool = False
     identity: Identity | None = None
+    startup_error: str = ""
+    """Why its last start-up was refused ("" when it was not)."""
 
     @property
     def name(self) -> str:
@@ -106,6 +109,8 @@ class DriveLink:
             parts.append(str(self.identity))
         if self.emcy:
             parts.append(self.emcy)
+        if self.startup_error:
+            parts.append(f"start-up refused: {self.startup_error}")
         return DriveInfo(self.motor, str(state) if state is not None else "unknown", self.cia.node_id,
                          "; ".join(parts))
 
@@ -116,6 +121,8 @@ class NodeReport:
 
     links: list[DriveLink]
     confirm_s: float
+    planner: RampPlanner
+    """Plans the controlled stop inside the envelope, as the millbus node does (:meth:`RampPlanner.plan_stop`)."""
     now_s: float = 0.0
     intent: Intent = Intent.DISABLED
     started: bool = False
@@ -128,7 +135,8 @@ class NodeReport:
     _armed_once: bool = False
     _emitted_s: float = -math.inf
     _challenge: int = 0
-    _foreign: list[str] = field(default_factory=list)
+    _stop_plan: Trajectory | None = None
+    _stop_start_s: float = 0.0
 
     def latch(self, flag: FaultFlag, cause: str) -> None:
         """A fault: the first cause is kept, every flag added."""
@@ -141,14 +149,11 @@ class NodeReport:
         """Every drive has sent a heartbeat (it is on the bus and can be configured)."""
         return all(not math.isinf(link.heartbeat_s) for link in self.links)
 
-    def started_up(self, refusals: list[str]) -> None:
-        """The start-up job's outcome: configured and started, or a fault naming what was refused."""
-        if refusals:
-            self.latch(FaultFlag.DRIVE, "; ".join(refusals))
-        else:
-            self.started = True
-            for link in self.links:
-                link.restarted = False
+    def started_up(self) -> None:
+        """Both drives configured and started: their reports count from now."""
+        self.started = True
+        for link in self.links:
+            link.restarted = False
 
     def second_sender(self, can_id: int, data: bytes) -> None:
         """A frame only the controller sends was heard: someone else commands the drives."""
@@ -156,10 +161,22 @@ class NodeReport:
                    "which only the controller sends (docs/safety.md#cia-402-drives)")
 
     def stop(self, now_s: float) -> None:
-        """Controlled stop: both targets 0 on the drives' deceleration ramps, then ARMED at standstill."""
+        """Controlled stop: the planned stop inside the envelope from the present targets, then ARMED at standstill."""
+        if self.intent is Intent.ENABLED and not self.stopping:
+            rotary, vibration = (link.cia.mill_rpm(link.target_units) for link in self.links)
+            self._stop_plan, self._stop_start_s = self.planner.plan_stop(SpeedPoint(rotary, vibration)), now_s
         self.stopping = self.intent is Intent.ENABLED
         for link in self.links:
             link.target_units = 0
+
+    def velocity_units(self, link: DriveLink, now_s: float) -> int:
+        """The target velocity RPDO1 carries now (drive units): the stop's ramp while stopping, else the target."""
+        if link.power.wanted is not Power.OPERATION_ENABLED or self.estop_latched or self.bits:
+            return 0
+        if self.stopping and self._stop_plan is not None:
+            point = self._stop_plan.at(now_s - self._stop_start_s)
+            return link.cia.wire_velocity(point.omega_r_rpm if link is self.links[0] else point.omega_v_rpm)
+        return link.target_units
 
     def estop(self, now_s: float) -> None:
         """E-stop: quick stop to both drives until both statuswords show it."""
@@ -171,6 +188,7 @@ class NodeReport:
         """Clear the latches and head for SWITCH ON DISABLED (fault reset edges where a drive is in FAULT)."""
         self.cause, self.bits, self.first = "", NO_FAULTS, FaultCode.NONE
         self.estop_latched = self.stopping = self._running = self._armed_once = False
+        self._stop_plan = None
         self.intent = Intent.DISABLED
         for link in self.links:
             link.emcy = ""
@@ -218,8 +236,6 @@ class NodeReport:
         """Latch what the drives' frames say went wrong."""
         for link in self.links:
             state = link.power.believed(now_s)
-            if link.restarted:
-                self.latch(FaultFlag.DRIVE, f"{link.name} restarted (boot-up heard): it lost its configuration")
             if link.emcy:
                 self.latch(FaultFlag.DRIVE, f"{link.name}: {link.emcy}")
             age_s = now_s - link.heartbeat_s
@@ -256,6 +272,7 @@ class NodeReport:
             if not at_rest:
                 return NodeState.STOPPING
             self.stopping = self._running = False
+            self._stop_plan = None
             return NodeState.ARMED
         if any(link.target_units for link in self.links):
             self._running = True

@@ -138,3 +138,16 @@ def test_a_drive_whose_heartbeat_stops_while_its_tpdos_go_on_trips_naming_it(rig
     rig.sim.drives["vibration"].store(0x1017, 0, 0)  # its producer heartbeat off: TPDOs still flow
     assert rig.run(5.0, lambda: rig.controller.state is S.TRIPPED)
     assert "vibration drive (node 3) heartbeat stale" in rig.controller.trip_cause
+
+
+def test_a_drive_that_restarts_is_configured_again_and_the_mill_recovers_after_a_reset(rig: Rig402) -> None:
+    rig.arm()
+    rig.probe.send(can.Message(arbitration_id=0x000, data=bytes([0x81, 0x02]), is_extended_id=False))  # reset node 2
+    assert rig.run(5.0, lambda: rig.controller.state is S.TRIPPED)
+    assert rig.run(30.0, lambda: rig.controller.drives.report.started and _measured_at_rest(rig))  # type: ignore[attr-defined]
+    rig.run(1.0)
+    rig.controller.reset()
+    assert rig.run(10.0, lambda: rig.controller.state is S.DISABLED), rig.messages("refusal")
+    assert rig.sim.drives["rotary"].value(0x1016, 1) == (1 << 16) | 250  # its consumer written again
+    rig.controller.arm()
+    assert rig.run(30.0, lambda: rig.controller.state is S.ARMED), rig.controller.trip_cause
