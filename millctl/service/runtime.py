@@ -377,6 +377,7 @@ class ServiceRuntime:
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
         with self.lock:
+            self.controller.drives.close()  # the drives backend's own threads (CiA 402: its SDO worker)
             self.bus.shutdown()
             if self.node is not None:
                 self.node.close()  # its physics worker; the bus is ours

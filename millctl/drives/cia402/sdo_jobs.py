@@ -116,6 +116,19 @@ def map_pdos(motor: str, node: canopen.RemoteNode, mode: Cia402Mode) -> str:
     return ""
 
 
+def _mode_shown(motor: str, node: canopen.RemoteNode, mode: Cia402Mode) -> str:
+    """The mode written to 0x6060 is confirmed by 0x6061 (modes of operation display), not by 0x6060's read-back."""
+    wanted = MODE_OF_OPERATION[mode]
+    try:
+        shown = int(sdo_var(node, 0x6061, 0).raw)
+    except (SdoError, KeyError) as exc:
+        return f"{motor} drive (node {node.id or 0}): 0x6061 modes of operation display not readable: {exc}"
+    return "" if shown == wanted else (
+        f"{motor} drive (node {node.id or 0}): 0x6060 modes of operation written {wanted}, 0x6061 display shows "
+        f"{shown}: the drive did not take the mode (docs/deployment.md#standard-cia-402-drives)"
+    )
+
+
 def start_up(motor: str, node: canopen.RemoteNode, mode: Cia402Mode, controller_id: int,
              consumer_ms: int) -> tuple[str, Identity | None]:
     """Configure one drive in PRE-OPERATIONAL, then start it: (refusal or "", its identity)."""
@@ -130,7 +143,7 @@ def start_up(motor: str, node: canopen.RemoteNode, mode: Cia402Mode, controller_
         LimitObject(0x6007, 0, HEARTBEAT_LOSS_QUICK_STOP, "abort connection option code"),
         LimitObject(0x6060, 0, MODE_OF_OPERATION[mode], "modes of operation"),
     ]
-    refusal = write_all(motor, node, settings) or map_pdos(motor, node, mode)
+    refusal = write_all(motor, node, settings) or _mode_shown(motor, node, mode) or map_pdos(motor, node, mode)
     if refusal:
         return refusal, identity
     node.nmt.send_command(0x01)  # start: OPERATIONAL, PDOs flow

@@ -10,7 +10,7 @@ import can
 
 from firmware_sim.cia402 import Cia402Mill
 from millctl.clock import ManualClock
-from millctl.config import load_config
+from millctl.config import MillConfig, load_config
 from millctl.controller import Controller, ControllerState, Event
 
 CONFIG = "config/mill-cia402.toml"
@@ -21,9 +21,9 @@ S = ControllerState
 class Rig402:
     """Controller + simulated drives + probe on one virtual bus (times in s, the manual clock's)."""
 
-    def __init__(self) -> None:
+    def __init__(self, config: MillConfig | None = None) -> None:
         channel = f"rig402-{uuid.uuid4().hex}"
-        self.config = load_config(CONFIG).config
+        self.config = config or load_config(CONFIG).config
         self.clock = ManualClock()
         self.events: list[Event] = []
         self.buses = [can.Bus(interface="virtual", channel=channel) for _ in range(3)]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import can
 import pytest
 
@@ -151,3 +153,22 @@ def test_a_drive_that_restarts_is_configured_again_and_the_mill_recovers_after_a
     assert rig.sim.drives["rotary"].value(0x1016, 1) == (1 << 16) | 250  # its consumer written again
     rig.controller.arm()
     assert rig.run(30.0, lambda: rig.controller.state is S.ARMED), rig.controller.trip_cause
+
+
+def test_velocity_mode_with_a_gear_ratio_runs_the_mill_at_mill_rpm(tmp_path: Path) -> None:
+    text = Path("config/mill-cia402.toml").read_text().replace('mode = "profile-velocity"', 'mode = "velocity"')
+    text = text.replace("gear_ratio = 1.0", "gear_ratio = 3.0")
+    (tmp_path / "mill.toml").write_text(text)
+    rig = Rig402(load_config(tmp_path / "mill.toml").config)
+    try:
+        rig.arm()
+        assert rig.sim.drives["rotary"].mode == 2  # 0x6060 as the controller wrote it at start-up
+        rig.controller.set_speeds(100.0, 300.0)
+        assert rig.run(60.0, lambda: rig.controller.trajectory is None)
+        rig.run(3.0)
+        assert rig.sim.true_speeds_rpm[1] == pytest.approx(300.0, abs=5.0)
+        measured = rig.controller.measured
+        assert measured is not None and measured.vibration_rpm == pytest.approx(300.0, abs=5.0)
+        assert rig.sim.drives["vibration"].value(0x6042) == 900  # 300 mill rpm × 3 motor rpm per mill rpm
+    finally:
+        rig.close()
