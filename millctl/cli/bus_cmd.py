@@ -73,7 +73,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "socketcan the link's own bitrate, state and error counters (ip -details link); the adapter's condition "
         "and error frames; whether the node's NodeStatus (0x100) arrives within --listen-s. Exit 0: bus up and "
         "node present; 3: the bus cannot be opened, is bus-off, runs at another bitrate, or the node is silent; "
-        "1: invalid configuration. docs/deployment.md#millctl-bus-check",
+        "1: invalid configuration. With [drives] backend = \"cia402\": each drive's NMT state (its heartbeat), "
+        "identity 0x1018 against its EDS, mode (0x6502) and the limits it holds, read by SDO, writing nothing "
+        "(docs/deployment.md#standard-cia-402-drives). docs/deployment.md#millctl-bus-check",
     )
     check.add_argument("--listen-s", type=_nonnegative_float, default=2.0, metavar="S",
                        help="how long to wait for the node's NodeStatus (default 2 s; it is sent every 50 ms)")

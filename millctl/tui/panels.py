@@ -214,8 +214,10 @@ class StatePanel(Static):
         faults = " ".join(status.node_faults if status else []) or "no faults"
         node = status.node_state if status else None
         text.append_text(Text.assemble("\n", ("node ", "dim"), f"{node or '—'}  {faults}"))
+        backend = status.drives_backend if status else ""
         for drive in status.drives if status else []:  # CiA 402: each drive's power state
-            text.append_text(Text.assemble("\n", (f"{drive.name} ", "dim"), f"{drive.state}  (node {drive.node_id})"))
+            text.append_text(Text.assemble("\n", (f"{drive.name} ", "dim"),
+                                           f"{drive.state}  ({backend} node {drive.node_id})"))
         holder = control.holder if control else None
         who = "you (this terminal)" if mine else (holder or "nobody")
         expired = " (lease expired)" if control and control.expired else ""

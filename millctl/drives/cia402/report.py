@@ -23,7 +23,13 @@ import canopen
 from millctl.config.models import Cia402Drive, Cia402Mode, Drive
 from millctl.drives.base import DriveInfo
 from millctl.drives.cia402.sdo_jobs import Identity
-from millctl.drives.cia402.state402 import Power, PowerMachine, quick_stop_shown
+from millctl.drives.cia402.state402 import (
+    QUICK_STOP_OPTION,
+    Power,
+    PowerMachine,
+    quick_stop_complete,
+    quick_stop_shown,
+)
 from millctl.protocol import NO_FAULTS, Decoded, DriveTelemetry, FaultCode, FaultFlag, NodeState, NodeStatus
 from millctl.safety import RampPlanner, SpeedPoint, Trajectory
 
@@ -107,6 +113,9 @@ class DriveLink:
             parts.append(f"heartbeat {now_s - self.heartbeat_s:.2f} s ago")
         if self.identity is not None:
             parts.append(str(self.identity))
+        if state is not None and self.power.wanted is Power.QUICK_STOP_ACTIVE:
+            done = quick_stop_complete(state, QUICK_STOP_OPTION, abs(self.measured_rpm()) < STANDSTILL_RPM)
+            parts.append("quick stop complete" if done else "quick stop under way")
         if self.emcy:
             parts.append(self.emcy)
         if self.startup_error:

@@ -1,0 +1,43 @@
+"""``millctl status`` and the TUI show the drives backend and each CiA 402 drive's state; millbus shows none."""
+
+from __future__ import annotations
+
+from rich.console import Console
+
+from millctl.api import StatusOut
+from millctl.api.models import DriveOut
+from millctl.cli.client_cmd import render_status
+from millctl.tui.panels import StatePanel
+from tests.unit.tui.frozen import status_at
+
+
+def _cia402(status: StatusOut) -> StatusOut:
+    return status.model_copy(update={"drives_backend": "cia402", "drives": [
+        DriveOut(name="rotary", state="OPERATION ENABLED", node_id=2, detail="NMT OPERATIONAL"),
+        DriveOut(name="vibration", state="QUICK STOP ACTIVE", node_id=3, detail="EMCY 0x8110 (error register 0x11)"),
+    ]})
+
+
+def _shown(status: StatusOut) -> str:
+    console = Console(width=240, record=True)
+    console.print(render_status(status))
+    return console.export_text()
+
+
+def test_status_shows_each_cia402_drive_with_its_node_and_state() -> None:
+    shown = _shown(_cia402(status_at(3)))
+    assert "cia402: rotary (node 2) OPERATION ENABLED — NMT OPERATIONAL" in shown
+    assert "vibration (node 3) QUICK STOP ACTIVE — EMCY 0x8110" in shown
+
+
+def test_status_on_millbus_has_no_drives_row() -> None:
+    assert "drives " not in _shown(status_at(3))
+
+
+def test_the_tui_state_panel_lists_each_cia402_drive() -> None:
+    panel = StatePanel()
+    seen: list[str] = []
+    panel.update = lambda text, layout=False: seen.append(str(text))  # type: ignore[method-assign]
+    panel.show(_cia402(status_at(3)), None, False, None)
+    assert "rotary OPERATION ENABLED  (cia402 node 2)" in seen[-1]
+    assert "vibration QUICK STOP ACTIVE  (cia402 node 3)" in seen[-1]
