@@ -35,9 +35,12 @@ def test_status_on_millbus_has_no_drives_row() -> None:
 
 
 def test_the_tui_state_panel_lists_each_cia402_drive() -> None:
-    panel = StatePanel()
     seen: list[str] = []
-    panel.update = lambda text, layout=False: seen.append(str(text))  # type: ignore[method-assign]
-    panel.show(_cia402(status_at(3)), None, False, None)
+
+    class Recording(StatePanel):
+        def update(self, content: object = "", *, layout: bool = True) -> None:
+            seen.append(str(content))
+
+    Recording().show(_cia402(status_at(3)), None, False, None)
     assert "rotary OPERATION ENABLED  (cia402 node 2)" in seen[-1]
     assert "vibration QUICK STOP ACTIVE  (cia402 node 3)" in seen[-1]
