@@ -57,7 +57,7 @@ from millctl.protocol import (
 )
 from millctl.protocol.e2e import E2EReceiver
 from millctl.safety import Envelope
-from tests.hil.conftest import IN_VM
+from tests.hil.conftest import IN_VM, REPO
 from tests.support.pace import slowdown_now, time_scale
 
 if TYPE_CHECKING:
@@ -260,7 +260,14 @@ def _dilate_drives(text: str, factor: float) -> str:
     return text
 
 
-def write_config(directory: Path, transport: Transport, *, dilate_drives: bool = False) -> Path:
+BACKEND_CONFIGS = {"millbus": "mill.toml", "cia402": "mill-cia402.toml"}
+"""The shipped configuration of each drive backend (``config/``): the same mill, its drives behind the millbus
+node or standard CiA 402 drives (issue 36)."""
+
+
+def write_config(
+    directory: Path, transport: Transport, *, dilate_drives: bool = False, backend: str = "millbus"
+) -> Path:
     """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
 
     Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (the measured
@@ -270,7 +277,8 @@ def write_config(directory: Path, transport: Transport, *, dilate_drives: bool =
     it allows on the host, at the cost of ramps that many times longer. For the scenarios whose
     subject is that rule; the others keep the host's drives.
     """
-    text = packaged_file("mill.toml").read_text(encoding="utf-8")
+    base = packaged_file("mill.toml") if backend == "millbus" else REPO / "config" / BACKEND_CONFIGS[backend]
+    text = base.read_text(encoding="utf-8")
     head = text.partition("[bus]")[0]
     if bound_scale() > 1.0:
         head = _scale_keys(head, bound_scale())
@@ -563,10 +571,22 @@ class Mill:
     reaction-time bounds.
     """
 
-    def __init__(self, transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> None:
+    def __init__(
+        self,
+        transport: Transport,
+        spawn: Spawner,
+        directory: Path,
+        *,
+        dilate_drives: bool = False,
+        backend: str = "millbus",
+        node_args: tuple[str, ...] = (),
+    ) -> None:
         self.transport = transport
         self.spawn = spawn
-        self.config_path = write_config(directory, transport, dilate_drives=dilate_drives)
+        self.backend = backend
+        self.node_args = node_args
+        """Extra arguments of ``python -m firmware_sim`` (e.g. a CiA 402 drive's ``--lie-readback``)."""
+        self.config_path = write_config(directory, transport, dilate_drives=dilate_drives, backend=backend)
         self.config = load_config(self.config_path).config
         self.codec = default_codec()
         self.bounds = Bounds(self.config, self.codec)
@@ -588,7 +608,7 @@ class Mill:
         seed = node_seed()
         print(f"node seed {seed} (replay: {NODE_SEED_ENV}={seed})")
         argv = ["python", "-m", "firmware_sim", "--config", str(self.config_path), "--fault-injection"]
-        self.node = self.spawn([*argv, "--seed", str(seed)], realtime="node")
+        self.node = self.spawn([*argv, "--seed", str(seed), *self.node_args], realtime="node")
         return self.node
 
     def start_service(self) -> subprocess.Popen[bytes]:
@@ -702,9 +722,17 @@ class Mill:
 
 
 @contextlib.contextmanager
-def mill_on(transport: Transport, spawn: Spawner, directory: Path, *, dilate_drives: bool = False) -> Iterator[Mill]:
+def mill_on(
+    transport: Transport,
+    spawn: Spawner,
+    directory: Path,
+    *,
+    dilate_drives: bool = False,
+    backend: str = "millbus",
+    node_args: tuple[str, ...] = (),
+) -> Iterator[Mill]:
     """A started mill on ``transport``, torn down afterwards (``dilate_drives``: see :func:`write_config`)."""
-    mill = Mill(transport, spawn, directory, dilate_drives=dilate_drives)
+    mill = Mill(transport, spawn, directory, dilate_drives=dilate_drives, backend=backend, node_args=node_args)
     try:
         mill.start()
         yield mill
@@ -713,6 +741,7 @@ def mill_on(transport: Transport, spawn: Spawner, directory: Path, *, dilate_dri
 
 
 __all__ = [
+    "BACKEND_CONFIGS",
     "NODE_SEED_ENV",
     "SCHEDULING_ALLOWANCE_S",
     "STANDSTILL_RPM",
