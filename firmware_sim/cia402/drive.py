@@ -271,6 +271,7 @@ class SimDrive:
         """A heartbeat from ``producer`` arrived (monitoring starts with the first one, CiA 301)."""
         if producer == self.consumer()[0]:
             self._last_producer_s = now_s
+            self.heartbeat_lost = False  # the heartbeat event is over (its reaction stays until commanded away)
 
     def _check_heartbeat(self, now_s: float) -> None:
         producer, timeout_s = self.consumer()

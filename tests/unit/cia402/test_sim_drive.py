@@ -138,6 +138,9 @@ def test_a_silent_controller_quick_stops_the_drive_within_consumer_time_plus_ram
     states = {state_of(m.data[0] | m.data[1] << 8) for m in w.frames(0x180 + ROTARY_ID, mark)}
     assert PowerState.QUICK_STOP_ACTIVE in states
     assert state(w, ROTARY_ID) is PowerState.SWITCH_ON_DISABLED  # 0x605A = 2: then switch on disabled
+    assert w.tpdo(ROTARY_ID)[0] & 0x0080  # warning: the heartbeat is lost ...
+    w.run(0.2, heartbeat=True)
+    assert not w.tpdo(ROTARY_ID)[0] & 0x0080  # ... until it is heard again
 
 
 def test_without_a_consumer_entry_a_silent_controller_changes_nothing(w: Wire) -> None:
