@@ -13,8 +13,9 @@ from collections.abc import Iterator
 import pytest
 
 from firmware_sim.cia402 import PowerState
-from firmware_sim.cia402.drive import EMCY_HEARTBEAT, EMCY_OVERSPEED, EMCY_STALL
+from firmware_sim.cia402.drive import EMCY_HEARTBEAT, EMCY_OVERSPEED, EMCY_SENSOR, EMCY_STALL
 from firmware_sim.cia402.power import state_of
+from firmware_sim.faults import BABBLE_ID
 from millctl.config import MillConfig
 from millctl.protocol import SimFault, SimFaultCode, default_codec
 from tests.unit.cia402.wire import CONTROLLER_ID, GEAR_RATIO, ROTARY_ID, VIBRATION_ID, Wire, cia402_config, wire
@@ -249,3 +250,33 @@ def test_nmt_reset_node_reboots_the_drive_with_its_defaults(w: Wire) -> None:
     assert [bytes(m.data) for m in w.frames(0x700 + ROTARY_ID, mark)][:1] == [b"\x00"]  # boot-up
     assert w.read(ROTARY_ID, 0x607F) == 0 and w.read(ROTARY_ID, 0x1016, 1) == 0
     assert w.mill.drives["rotary"].state is PowerState.SWITCH_ON_DISABLED
+
+
+def test_a_noisy_sensor_raises_the_sensor_emcy(w: Wire) -> None:
+    configure(w, ROTARY_ID)
+    enable(w, ROTARY_ID)
+    w.run(3.0, heartbeat=True, rpdo={ROTARY_ID: (ENABLE, wire(60.0))})
+    mark = len(w.seen)
+    inject(w, SimFaultCode.SENSOR_NOISY, param=50.0)
+    w.run(1.0, heartbeat=True, rpdo={ROTARY_ID: (ENABLE, wire(60.0))})
+    codes = [struct.unpack_from("<H", m.data)[0] for m in w.frames(0x80 + ROTARY_ID, mark)]
+    assert codes[:1] == [EMCY_SENSOR]
+    assert state(w, ROTARY_ID) in (PowerState.FAULT_REACTION_ACTIVE, PowerState.FAULT)
+
+
+def test_babble_and_frame_loss_act_on_what_the_drives_send(w: Wire) -> None:
+    configure(w, ROTARY_ID)
+    mark = len(w.seen)
+    inject(w, SimFaultCode.NODE_BABBLE, param=1000.0)
+    w.run(0.5, heartbeat=True)
+    assert len(w.frames(BABBLE_ID, mark)) >= 400  # about 1000 Hz for 0.5 s
+    assert w.read(ROTARY_ID, 0x6041)  # the drive still answers
+    inject(w, SimFaultCode.NODE_BABBLE, active=False)
+    inject(w, SimFaultCode.TX_LOSS, param=1.0)
+    w.step()
+    mark = len(w.seen)
+    w.run(0.5, heartbeat=True)
+    assert [m for m in w.seen[mark:] if m.arbitration_id != 0x700 + CONTROLLER_ID] == []
+    inject(w, SimFaultCode.TX_LOSS, active=False)
+    w.run(0.2, heartbeat=True)
+    assert w.frames(0x180 + ROTARY_ID, mark)  # TPDO1 again
