@@ -24,7 +24,7 @@ from millctl.config.models import Cia402Mode, MillConfig
 from millctl.drives.base import DriveInfo, DrivesBackend, DrivesBatch, LimitsState
 from millctl.drives.cia402.limits import drive_limits
 from millctl.drives.cia402.report import DriveLink, Intent, NodeReport
-from millctl.drives.cia402.sdo_jobs import start_up, write_all
+from millctl.drives.cia402.sdo_jobs import PRODUCER_HEARTBEAT_MS, start_up, write_all
 from millctl.drives.cia402.state402 import PowerMachine
 from millctl.protocol import CommandCode, EStopSource, FaultFlag
 from millctl.protocol import ControllerState as WireState
@@ -35,11 +35,14 @@ log = logging.getLogger(__name__)
 NMT_OPERATIONAL = 0x05
 """The heartbeat state byte the controller produces (it is operational while it ticks)."""
 
+UNHEARD_START_UP_S = 2.0
+"""Drives not all heard by their heartbeat after this long (s) are configured anyway: SDO needs no heartbeat."""
+
 STARTUP_RETRY_S = 5.0
 """A start-up a drive refused is tried again after this long (s; the refusal is in the drive's status detail)."""
 
-DRIVE_HEARTBEAT_S = 0.1
-"""The drives' own heartbeat period (0x1017, ms/1000): the shipped EDS's default."""
+DRIVE_HEARTBEAT_S = PRODUCER_HEARTBEAT_MS / 1000.0
+"""The drives' own heartbeat period (s): 0x1017 as millctl writes it at start-up."""
 
 
 class Cia402Drives(DrivesBackend):
@@ -82,6 +85,7 @@ class Cia402Drives(DrivesBackend):
         self._setpoint_period_s = config.timing.setpoint_period_s
         self._next_rpdo_s = -math.inf
         self._startup_retry_s = -math.inf
+        self._first_periodic_s: float | None = None
         self._sent_words: dict[str, int] = {}
 
     # -- reading
@@ -142,8 +146,11 @@ class Cia402Drives(DrivesBackend):
                 self.report.latch(FaultFlag.DRIVE, f"{link.name} restarted (boot-up heard): it lost its "
                                   "configuration and is configured again; reset to go on")
             self.report.started = False
-        if (self._startup is None and not self.report.started and self.report.all_heard(now_s)
-                and now_s >= self._startup_retry_s):
+        if self._first_periodic_s is None:
+            self._first_periodic_s = now_s
+        unheard_s = now_s - self._first_periodic_s  # a drive whose 0x1017 is 0 sends no heartbeat until configured
+        if (self._startup is None and not self.report.started and now_s >= self._startup_retry_s
+                and (self.report.all_heard(now_s) or unheard_s >= UNHEARD_START_UP_S)):
             self._startup = self._jobs.submit(self._start_up)
         if self._startup is not None and self._startup.done():
             refusals = [r for r in self._startup.result() if r]

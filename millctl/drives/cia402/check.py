@@ -21,7 +21,13 @@ from canopen.sdo.exceptions import SdoError
 from millctl.config.models import MillConfig
 from millctl.drives.cia402.limits import LimitObject, drive_limits
 from millctl.drives.cia402.report import NMT_NAMES
-from millctl.drives.cia402.sdo_jobs import MODE_OF_OPERATION, SDO_TIMEOUT_S, read_identity, sdo_var
+from millctl.drives.cia402.sdo_jobs import (
+    MODE_OF_OPERATION,
+    PRODUCER_HEARTBEAT_MS,
+    SDO_TIMEOUT_S,
+    read_identity,
+    sdo_var,
+)
 from millctl.safety import Envelope
 
 SUPPORTED_MODE_BIT = {3: 1 << 2, 2: 1 << 1}
@@ -72,16 +78,17 @@ def _check_one(motor: str, node: canopen.RemoteNode, heard: dict[int, int], want
     node_id = int(node.id or 0)
     result = DriveCheck(motor, node_id)
     state = heard.get(node_id)
-    if state is None:
-        result.problems.append(f"no heartbeat at 0x{0x700 + node_id:03X}: the drive is off, on another node ID or "
-                               "bitrate, or its producer heartbeat 0x1017 is 0")
-    else:
+    if state is not None:
         result.nmt_state = NMT_NAMES.get(state, f"0x{state:02X}")
     try:
         identity = read_identity(node)
     except (SdoError, KeyError) as exc:
-        result.problems.append(f"no SDO answer for the identity 0x1018 ({exc}): nothing more can be read")
+        heartbeat = "no heartbeat" if state is None else f"heartbeat {result.nmt_state}"
+        result.problems.append(f"{heartbeat} at 0x{0x700 + node_id:03X} and no SDO answer for the identity 0x1018 "
+                               f"({exc}): the drive is off, on another node ID or bitrate, or not on this bus")
         return result
+    if state is None:  # it answers SDO: its producer heartbeat is off, and millctl sets it at start-up
+        result.nmt_state = "no heartbeat (0x1017 = 0? millctl writes 100 ms at start-up)"
     result.identity = asdict(identity)
     info = node.object_dictionary.device_information
     eds_vendor, eds_product = info.vendor_number, info.product_number
@@ -92,7 +99,8 @@ def _check_one(motor: str, node: canopen.RemoteNode, heard: dict[int, int], want
             f"vendor 0x{identity.vendor_id:08X} product 0x{identity.product_code:08X}: name this drive's own EDS "
             "in [drives.<motor>.cia402] eds"
         )
-    checks = [*want, LimitObject(0x1016, 1, heartbeat_word, "consumer heartbeat time"),
+    checks = [*want, LimitObject(0x1017, 0, PRODUCER_HEARTBEAT_MS, "producer heartbeat time"),
+              LimitObject(0x1016, 1, heartbeat_word, "consumer heartbeat time"),
               LimitObject(0x6007, 0, 3, "abort connection option code")]
     for limit in checks:
         try:

@@ -30,6 +30,9 @@ ACTUAL_OBJECT = {Cia402Mode.PROFILE_VELOCITY: 0x606C, Cia402Mode.VELOCITY: 0x604
 HEARTBEAT_LOSS_QUICK_STOP = 3
 """0x6007 abort connection option code 3: quick stop on loss of the controller's heartbeat."""
 
+PRODUCER_HEARTBEAT_MS = 100
+"""0x1017 millctl writes: each drive's own heartbeat, which the controller monitors (many drives ship with 0)."""
+
 TPDO_EVENT_TIMER_MS = 50
 """TPDO1 event timer (ms): the millbus telemetry period."""
 
@@ -139,6 +142,7 @@ def start_up(motor: str, node: canopen.RemoteNode, mode: Cia402Mode, controller_
     except (SdoError, KeyError) as exc:
         return f"{motor} drive (node {node.id or 0}): identity 0x1018 not readable: {exc}", None
     settings = [
+        LimitObject(0x1017, 0, PRODUCER_HEARTBEAT_MS, "producer heartbeat time"),
         LimitObject(0x1016, 1, (controller_id << 16) | consumer_ms, "consumer heartbeat time"),
         LimitObject(0x6007, 0, HEARTBEAT_LOSS_QUICK_STOP, "abort connection option code"),
         LimitObject(0x6060, 0, MODE_OF_OPERATION[mode], "modes of operation"),
@@ -154,6 +158,7 @@ def start_up(motor: str, node: canopen.RemoteNode, mode: Cia402Mode, controller_
 __all__ = [
     "ACTUAL_OBJECT",
     "MODE_OF_OPERATION",
+    "PRODUCER_HEARTBEAT_MS",
     "TARGET_OBJECT",
     "Identity",
     "map_pdos",

@@ -172,3 +172,14 @@ def test_velocity_mode_with_a_gear_ratio_runs_the_mill_at_mill_rpm(tmp_path: Pat
         assert rig.sim.drives["vibration"].value(0x6042) == 900  # 300 mill rpm × 3 motor rpm per mill rpm
     finally:
         rig.close()
+
+
+def test_drives_shipped_without_a_heartbeat_are_configured_anyway_and_then_produce_one(rig: Rig402) -> None:
+    rig.step()  # the drives boot
+    for drive in rig.sim.drives.values():
+        drive.store(0x1017, 0, 0)
+    rig.connect()
+    assert all(drive.value(0x1017) == 100 for drive in rig.sim.drives.values())
+    rig.heard.clear()
+    rig.run(1.0)
+    assert {m.arbitration_id for m in rig.heard} >= {0x702, 0x703}

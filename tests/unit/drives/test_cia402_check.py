@@ -81,4 +81,5 @@ def test_a_drive_on_another_node_id_is_named_silent(
         update={"node_id": 9})})
     config = config.model_copy(update={"drives": config.drives.model_copy(update={"vibration": vibration})})
     report = check_drives(config, bus, 0.5)
-    assert any(p.startswith("vibration drive (node 9): no heartbeat at 0x709") for p in report.problems)
+    assert any(p.startswith("vibration drive (node 9): no heartbeat at 0x709 and no SDO answer for the identity")
+               for p in report.problems)
