@@ -204,7 +204,20 @@ class FurnaceBackend(enum.StrEnum):
     NONE = "none"
 
 
-_Finite = Annotated[float, Field(gt=0.0, le=1e9, allow_inf_nan=False)]
+SCALING_MAX = 1e9
+"""Largest velocity scaling factor accepted (a drive unit per rpm, or a gear ratio)."""
+
+
+def _scaling(value: float) -> float:
+    if not (math.isfinite(value) and 0.0 < value <= SCALING_MAX):
+        raise ValueError(
+            f"{value} is not a usable scaling: it must be a finite number > 0 (bound: 0 < value ≤ {SCALING_MAX:g}); "
+            "wire value = round(mill rpm × gear_ratio × units_per_rpm) (docs/deployment.md#standard-cia-402-drives)"
+        )
+    return value
+
+
+_Finite = Annotated[float, AfterValidator(_scaling)]
 
 
 def _node_id_in_range(value: int) -> int:
@@ -238,11 +251,20 @@ class Cia402Drive(_Strict):
     @field_validator("eds")
     @classmethod
     def _eds_exists(cls, value: str) -> str:
-        if value and not Path(value).is_file():
+        if not value:
+            return value
+        if not Path(value).is_file():
             raise ValueError(
                 f"EDS file {value!r} not found (a path relative to the config file, or \"\" for the shipped "
                 "generic cia402-drive.eds; docs/deployment.md#standard-cia-402-drives)"
             )
+        import canopen  # only a CiA 402 configuration needs it
+
+        try:
+            canopen.import_od(value)
+        except Exception as exc:  # the EDS parser raises whatever it meets in a file that is not one
+            shown = " ".join(str(exc).split())
+            raise ValueError(f"EDS file {value!r} is not a readable EDS ({type(exc).__name__}: {shown})") from None
         return value
 
     def wire_velocity(self, mill_rpm: float) -> int:

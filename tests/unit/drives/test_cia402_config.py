@@ -47,6 +47,13 @@ def test_an_unknown_eds_file_is_refused_naming_it(tmp_path: Path) -> None:
     assert str(tmp_path / "acme-servo.eds") in message and "not found" in message
 
 
+def test_a_file_that_is_not_an_eds_is_refused_naming_it(tmp_path: Path) -> None:
+    (tmp_path / "notes.eds").write_text("these are my notes\n")
+    message = _error(_variant(tmp_path, 'eds = ""', 'eds = "notes.eds"'))
+    assert "drives.rotary.cia402.eds" in message and "is not a readable EDS" in message
+    assert str(tmp_path / "notes.eds") in message
+
+
 @pytest.mark.parametrize("node_id", [0, 128, -1])
 def test_a_node_id_outside_1_to_127_is_refused_with_its_bound(tmp_path: Path, node_id: int) -> None:
     message = _error(_variant(tmp_path, "node_id = 3", f"node_id = {node_id}"))
@@ -70,7 +77,7 @@ def test_a_scaling_of_zero_nan_inf_or_negative_is_refused(tmp_path: Path, field:
     message = _error(_variant(tmp_path, f"{field} = 1.0", f"{field} = {value}"))
     assert f"drives.rotary.cia402.{field} = " in message
     shown = message.split(f"drives.rotary.cia402.{field} = ")[1]
-    assert ("greater than 0" in shown) or ("finite" in shown)
+    assert "must be a finite number > 0 (bound: 0 < value ≤ 1e+09)" in shown
 
 
 def test_a_cia402_backend_without_its_drives_is_refused(tmp_path: Path) -> None:
