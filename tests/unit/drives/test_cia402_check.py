@@ -83,3 +83,28 @@ def test_a_drive_on_another_node_id_is_named_silent(
     report = check_drives(config, bus, 0.5)
     assert any(p.startswith("vibration drive (node 9): no heartbeat at 0x709 and no SDO answer for the identity")
                for p in report.problems)
+
+
+def test_millctl_bus_check_prints_each_drive_in_words_and_exits_0(capsys: pytest.CaptureFixture[str]) -> None:
+    import argparse
+
+    from millctl.cli.bus_cmd import _check_cia402
+
+    config = load_config("config/mill-cia402.toml").config
+    config = config.model_copy(update={"bus": config.bus.model_copy(update={"channel": f"cli-{uuid.uuid4().hex}"})})
+    sim_bus = can.Bus(interface="virtual", channel=config.bus.channel)
+    sim = Cia402Mill(config, sim_bus, MonotonicClock())
+    stop = threading.Event()
+    thread = threading.Thread(target=lambda: [sim.tick() for _ in iter(lambda: stop.wait(0.005), True)], daemon=True)
+    thread.start()
+    try:
+        code = _check_cia402(argparse.Namespace(json=False, listen_s=stretched(2.0)), config)
+    finally:
+        stop.set()
+        thread.join()
+        sim.close()
+        sim_bus.shutdown()
+    shown = capsys.readouterr().out
+    assert code == 0, shown
+    assert "rotary   node 2, NMT PRE-OPERATIONAL, vendor 0x4D494C4C product 0x00000402" in shown
+    assert "EDS matches" in shown and "0x607F:00 max profile velocity: holds" in shown
