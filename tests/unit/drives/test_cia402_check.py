@@ -95,7 +95,12 @@ def test_millctl_bus_check_prints_each_drive_in_words_and_exits_0(capsys: pytest
     sim_bus = can.Bus(interface="virtual", channel=config.bus.channel)
     sim = Cia402Mill(config, sim_bus, MonotonicClock())
     stop = threading.Event()
-    thread = threading.Thread(target=lambda: [sim.tick() for _ in iter(lambda: stop.wait(0.005), True)], daemon=True)
+
+    def run() -> None:
+        while not stop.wait(0.005):
+            sim.tick()
+
+    thread = threading.Thread(target=run, daemon=True)
     thread.start()
     try:
         code = _check_cia402(argparse.Namespace(json=False, listen_s=stretched(2.0)), config)
