@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import can
 import pytest
 
@@ -12,6 +14,7 @@ from firmware_sim.embedded import simulated_mill
 from firmware_sim.node import Node
 from millctl.clock import ManualClock
 from millctl.config import MillConfig
+from millctl.errors import ConfigError
 from tests.unit.cia402.wire import cia402_config
 
 
@@ -39,3 +42,21 @@ def test_lie_readback_specs_are_checked() -> None:
 def test_lie_readback_on_a_millbus_config_is_invalid_input(caplog: pytest.LogCaptureFixture) -> None:
     assert main(["--config", "config/mill.toml", "--lie-readback", "rotary:0x607F"]) == 1
     assert "needs CiA 402 drives" in caplog.text
+
+
+def test_an_unreadable_eds_is_a_config_error_naming_the_drive(config: MillConfig, tmp_path: Path) -> None:
+    eds = tmp_path / "broken.eds"
+    eds.write_text("this is no EDS\n", encoding="utf-8")
+    # The config's validator reads the EDS too; this is the file broken after the config was read.
+    cia = cia402_config(config)
+    vibration = cia.drives.vibration
+    assert vibration.cia402 is not None
+    broken = vibration.model_copy(update={"cia402": vibration.cia402.model_copy(update={"eds": str(eds)})})
+    cia = cia.model_copy(update={"drives": cia.drives.model_copy(update={"vibration": broken})})
+    bus = can.Bus(interface="virtual", channel="broken-eds")
+    try:
+        with pytest.raises(ConfigError, match=r"drives\.vibration\.cia402\.eds: not a readable EDS") as caught:
+            Cia402Mill(cia, bus, ManualClock())
+        assert str(eds) in str(caught.value)
+    finally:
+        bus.shutdown()
