@@ -161,9 +161,11 @@ def test_estop_quick_stops_both_drives(mill: Mill, transport: Transport, capsys:
 
 
 @pytest.mark.parametrize("transport", HOST, indirect=True)
-@pytest.mark.parametrize(("fault", "speeds"), [(SimFaultCode.VIB_STALL, STALL_RPM),
-                                               (SimFaultCode.ROTARY_RUNAWAY, LOW_RPM),
-                                               (SimFaultCode.NODE_SILENT, LOW_RPM)])
+@pytest.mark.parametrize(
+    ("fault", "speeds"),
+    [(SimFaultCode.VIB_STALL, STALL_RPM), (SimFaultCode.ROTARY_RUNAWAY, LOW_RPM), (SimFaultCode.NODE_SILENT, LOW_RPM)],
+    ids=["stall", "runaway", "stale-telemetry"],
+)
 def test_a_failing_drive_trips_and_the_mill_stops(mill: Mill, fault: SimFaultCode, speeds: tuple[float, float]) -> None:
     probe = probe_of(mill)
     mill.run_at(*speeds)
