@@ -4,21 +4,10 @@ Every ``timing.controller_tick_s`` the loop ticks the controller, the recipe
 runner and the node (when embedded), then runs the commands waiting for it.
 Request handlers never touch the controller themselves and never hold the
 loop's lock: they queue a command and wait for its result, so a slow request
-(a huge body, a slow client) cannot delay a heartbeat (SAFETY 19). Three
-paths, so that no client can crowd out another's command (SAFETY 24):
-
-* **STOP and E-stop** (:meth:`ServiceRuntime.call_urgent`) go to a queue that
-  is never full and is served first, all of it, every tick; the request
-  awaits its answer without taking a thread of the server's pool.
-* **Other commands** (:meth:`ServiceRuntime.call`) go to a bounded queue; a
-  full queue is refused at once (503 ``busy``), with nothing done.
-* **Status reads** (:meth:`ServiceRuntime.status`) take no queue slot: the
-  loop publishes a snapshot after its commands, and a read is answered from
-  it (one fresher than STATUS_MAX_AGE_S is asked for, and published at the
-  next tick).
-
-Records (events,
-run records, the bus log) are written on a thread of their own
+(a huge body, a slow client) cannot delay a heartbeat (SAFETY 19). STOP and
+E-stop, other commands and status reads take three paths, so that no client
+can crowd out another's command (:mod:`.commands`, SAFETY 24). Records
+(events, run records, the bus log) are written on a thread of their own
 (:class:`~millctl.records.RecordQueue`): a full or failing disk is a warning and
 an event, a running recipe is stopped in a controlled way, and the mill stays
 controlled (SAFETY 23). If the loop dies, the heartbeat stops and the node's
@@ -28,16 +17,11 @@ without its loop.
 
 from __future__ import annotations
 
-import asyncio
 import logging
-import math
 import os
-import queue
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
-from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any, TypeVar
 
 import can
@@ -48,9 +32,17 @@ from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
 from millctl.config.paths import service_paths
 from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
-from millctl.errors import BusError
 from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
+from millctl.service.commands import (
+    COMMAND_QUEUE_SIZE,
+    COMMAND_TIMEOUT_S,
+    STATUS_MAX_AGE_S,
+    LoopPaths,
+    NodeUnreachable,
+    ServiceBusy,
+    Snapshot,
+)
 from millctl.service.faults import embeds_node, require_simulated
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
@@ -65,35 +57,11 @@ S = ControllerState
 BUS_LOG_STEM = "bus"
 """The candump bus log of each session: ``<records_dir>/bus/bus_<start time>.log``."""
 
-COMMAND_QUEUE_SIZE = 32
-"""Commands waiting for the control loop; one more is refused at once (503 ``busy``). Reads, STOP and E-stop
-take no slot here."""
-COMMANDS_PER_TICK = 8
-"""The loop runs at most this many queued commands after each tick."""
-URGENT_PER_TICK = 4096
-"""The loop runs at most this many STOPs and E-stops after each tick: more than the service has connections
-(millctl.service.connections), so every one waiting is run at the next tick."""
-COMMAND_TIMEOUT_S = 5.0
-"""A request waits this long for the loop to run its command before it is answered 503 (s)."""
-STATUS_MAX_AGE_S = 0.05
-"""A status read is answered from the loop's snapshot when it is at most this old (s); else the next tick's."""
-
 EMBEDDED_NODE_WAIT_S = 10.0
 """With the embedded node, the API opens once the controller has seen it (or after this long, s)."""
 
 STOP_BOUND_S = (5.0, 30.0)
 """A shutdown waits for standstill the expected ramp-down time plus 2 s, kept within these bounds (s)."""
-
-
-class NodeUnreachable(BusError):
-    """The controller has not heard from the node (or the control loop is down): nothing can be commanded."""
-
-
-class ServiceBusy(BusError):
-    """The control loop's command queue is full, or it did not take the command in time (HTTP 503)."""
-
-
-_Command = tuple[Callable[[Controller], Any], bool, "Future[Any]"]
 
 
 class ServiceRuntime:
@@ -131,13 +99,8 @@ class ServiceRuntime:
         self.leases = LeaseManager(self.clock, lease_ttl_s)
         self.failed: str | None = None
         self.stopping = False
-        self._commands: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
-        self._urgent: queue.SimpleQueue[_Command] = queue.SimpleQueue()
-        """STOP and E-stop: never full (each waits on a connection, and those are bounded), served first."""
-        self._published = threading.Condition()
-        self._status: tuple[dict[str, Any], RecipeOut] | None = None
-        self._status_s = -math.inf
-        self._status_wanted = False
+        self.paths = LoopPaths(self.lock, self._execute, self._take_snapshot, lambda: self.failed)
+        self._commands = self.paths.commands
         session = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(self.started_unix))
         self.bus_log_path = self.records_dir / "bus" / f"{BUS_LOG_STEM}_{session}_{os.getpid()}.log"
         bus_log = RotatingBusLog(self.bus_log_path, service.rotate_bytes, service.keep_files)
@@ -154,6 +117,7 @@ class ServiceRuntime:
         self._halt = threading.Event()
         self._closed = False
         self._thread = threading.Thread(target=self._loop, name="millctl-control-loop", daemon=True)
+        self.paths.attach(self._thread)
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> None:
@@ -225,43 +189,12 @@ class ServiceRuntime:
                 self.node.tick()
 
     def _run_commands(self) -> None:
-        """Run the queued commands (STOPs and E-stops first, all of them), then publish the status, under the lock.
+        """Run the commands waiting (STOPs and E-stops first), then publish the snapshot reads are answered from."""
+        self.paths.run()
 
-        The status is published before the answers are handed back, so a read that follows a command's answer
-        sees what the command did.
-        """
-        answers: list[tuple[Future[Any], Any, BaseException | None]] = []
-        with self.lock:
-            sources: tuple[tuple[queue.SimpleQueue[_Command] | queue.Queue[_Command], int], ...] = (
-                (self._urgent, URGENT_PER_TICK), (self._commands, COMMANDS_PER_TICK))
-            for source, bound in sources:
-                for _ in range(bound):
-                    try:
-                        action, needs_node, future = source.get_nowait()
-                    except queue.Empty:
-                        break
-                    if not future.set_running_or_notify_cancel():
-                        continue  # its request gave up waiting
-                    try:
-                        answers.append((future, self._execute(action, needs_node), None))
-                    except BaseException as exc:  # handed to the waiting request, which maps it to its 4xx/5xx
-                        answers.append((future, None, exc))
-            if answers or self._status_wanted:
-                self._publish_status()
-        for future, result, error in answers:
-            if error is None:
-                future.set_result(result)
-            else:
-                future.set_exception(error)
-
-    def _publish_status(self) -> None:
-        """Take the status snapshot reads are answered from (on the loop, under the lock)."""
-        snapshot = (finite(self.controller.status().as_dict()), self.recipe.recipe_out())
-        with self._published:
-            self._status = snapshot
-            self._status_s = time.monotonic()
-            self._status_wanted = False
-            self._published.notify_all()
+    def _take_snapshot(self) -> Snapshot:
+        """What status reads are answered from (on the loop, under the lock)."""
+        return finite(self.controller.status().as_dict()), self.recipe.recipe_out()
 
     def _execute(self, action: Callable[[Controller], T], needs_node: bool) -> T:
         if needs_node and self.controller.state is S.DISCONNECTED:
@@ -285,83 +218,25 @@ class ServiceRuntime:
         queue is full (STOP and E-stop: :meth:`call_urgent`). The
         loop thread itself (and a runtime whose loop never started) runs it here.
         """
-        if threading.current_thread() is self._thread or not self._thread.is_alive():
-            # in the loop itself, or no loop to ask (not started, or ended): here, under the lock
-            if self._thread.ident is not None and needs_node:
-                raise NodeUnreachable(self.failed or "the control loop is not running")
-            with self.lock:
-                return self._execute(action, needs_node)
-        future: Future[T] = Future()
-        try:
-            self._commands.put_nowait((action, needs_node, future))
-        except queue.Full:
-            raise ServiceBusy(
-                f"the control loop has {COMMAND_QUEUE_SIZE} commands waiting: try again (nothing was done)"
-            ) from None
-        try:
-            return future.result(timeout=timeout_s)
-        except FutureTimeout:
-            if future.cancel():
-                raise ServiceBusy(f"the control loop did not take the command within {timeout_s:.0f} s "
-                                  "(nothing was done)") from None
-            return future.result()  # it started just now: its result is on the way
+        return self.paths.call(action, needs_node=needs_node, timeout_s=timeout_s)
 
     async def call_urgent(
         self, action: Callable[[Controller], T], *, needs_node: bool = False, timeout_s: float = COMMAND_TIMEOUT_S,
     ) -> T:
-        """Have the loop run ``action(controller)`` (a STOP, an E-stop) before anything else at its next tick.
-
-        Never refused as busy: the queue is never full, and the request awaits the answer on the server's event
-        loop, taking no thread of its pool. A loop that does not take it within ``timeout_s`` is stalled or dead:
-        503 ``node_unreachable``, and the command stays queued (a late stop is still a stop; the node's watchdog
-        stops the mill once the heartbeat stops).
-        """
-        if not self._thread.is_alive():  # a runtime stepped by hand (or one whose loop ended): here, under the lock
-            if self._thread.ident is not None and needs_node:
-                raise NodeUnreachable(self.failed or "the control loop is not running")
-            with self.lock:
-                return self._execute(action, needs_node)
-        future: Future[T] = Future()
-        self._urgent.put((action, needs_node, future))
-        try:
-            return await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(future)), timeout_s)
-        except TimeoutError:
-            raise NodeUnreachable(f"the control loop did not take the command within {timeout_s:.0f} s: it is "
-                                  "stalled or gone; the command stays queued, and the node's watchdog stops the "
-                                  "mill once the heartbeat stops") from None
+        """Have the loop run ``action(controller)`` (a STOP, an E-stop) first at its next tick; never refused busy."""
+        return await self.paths.call_urgent(action, needs_node=needs_node, timeout_s=timeout_s)
 
     def call_soon(self, action: Callable[[Controller], Any]) -> None:
         """Queue ``action(controller)`` for the loop without waiting (from the records thread; never raises)."""
-        self._urgent.put((action, False, Future()))
+        self.paths.call_soon(action)
 
     def status(self, timeout_s: float = COMMAND_TIMEOUT_S) -> dict[str, Any]:
         """The controller's status, JSON-ready (non-finite floats as None), from the loop's snapshot."""
-        return self._snapshot(timeout_s)[0]
+        return self.paths.snapshot(timeout_s)[0]
 
     def recipe_view(self, timeout_s: float = COMMAND_TIMEOUT_S) -> RecipeOut:
         """The current (or last) recipe run's progress (``GET /v1/recipe``), from the loop's snapshot."""
-        return self._snapshot(timeout_s)[1]
-
-    def _snapshot(self, timeout_s: float) -> tuple[dict[str, Any], RecipeOut]:
-        """Status and recipe progress as the loop published them: a read takes no slot of the command queue.
-
-        Answered from the snapshot the loop published when that is at most STATUS_MAX_AGE_S old, else from the
-        one the loop publishes at its next tick (asked for here).
-        """
-        if not self._thread.is_alive():  # no loop to publish: here, under the lock
-            with self.lock:
-                return finite(self.controller.status().as_dict()), self.recipe.recipe_out()
-        asked_s = time.monotonic()
-        with self._published:
-            if self._status is not None and asked_s - self._status_s <= STATUS_MAX_AGE_S:
-                return self._status
-            self._status_wanted = True
-            if not self._published.wait_for(lambda: self._status_s >= asked_s or not self._thread.is_alive(),
-                                            timeout_s):
-                raise ServiceBusy(f"the control loop published no status within {timeout_s:.0f} s")
-            if self._status is None:
-                raise NodeUnreachable(self.failed or "the control loop is not running")
-            return self._status
+        return self.paths.snapshot(timeout_s)[1]
 
     def describe(self) -> ServiceOut:
         """Which mill this service controls, and how (``GET /v1/service``)."""
