@@ -432,10 +432,11 @@ def _tls_context() -> ssl.SSLContext:
     return httpx.create_ssl_context()
 
 
-_GONE = (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError)
-"""What a missing or vanished service looks like to httpx."""
-_LOST = (httpx.ReadError, httpx.WriteError)
-"""A connection broken mid-request: the service may or may not have carried the request out."""
+_GONE = (httpx.ConnectError, httpx.ConnectTimeout, httpx.PoolTimeout, httpx.RemoteProtocolError, FileNotFoundError,
+         ConnectionError)
+"""What a missing, vanished or unreachable service looks like to httpx."""
+_LOST = (httpx.ReadError, httpx.WriteError, httpx.ReadTimeout, httpx.WriteTimeout)
+"""A connection broken, or unanswered, mid-request: the service may or may not have carried the request out."""
 _FAILED = _GONE + _LOST
 _LIMITS = httpx.Limits(keepalive_expiry=CLIENT_KEEP_ALIVE_S)
 _STREAM = Request("GET", "/v1/stream")

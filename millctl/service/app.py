@@ -226,7 +226,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             rt.recipe.abort_if_active(who)
             c.stop(source=who)
 
-        await rt.call_urgent(act, needs_node=True)
+        await rt.call_urgent(act, needs_node=True, stops=who)
         wanted = SETTLES_IN["stop"] | {S.TRIPPED}
         deadline = time.monotonic() + SETTLE_S
         while rt.controller.state not in wanted and time.monotonic() < deadline and rt.running and not rt.stopping:
@@ -248,7 +248,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             c.estop(source=who)
             return CommandOut(message="E-STOP", state=c.state)
 
-        return await rt.call_urgent(act)
+        return await rt.call_urgent(act, stops=who)
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(

@@ -29,7 +29,7 @@ from typing import Any, TypeVar
 
 from millctl.api import RecipeOut
 from millctl.controller import Controller
-from millctl.errors import BusError
+from millctl.errors import BusError, InterlockError
 
 T = TypeVar("T")
 
@@ -49,6 +49,8 @@ STATUS_MAX_AGE_S = 0.05
 Snapshot = tuple[dict[str, Any], RecipeOut]
 """What reads are answered from: the status (JSON-ready) and the recipe run's progress."""
 _Command = tuple[Callable[[Controller], Any], bool, "Future[Any]"]
+_Urgent = tuple[Callable[[Controller], Any], bool, "Future[Any]", str | None]
+"""An urgent command, and who stops (None: not a stop): a stop overtakes every command waiting behind it."""
 
 
 class NodeUnreachable(BusError):
@@ -57,6 +59,10 @@ class NodeUnreachable(BusError):
 
 class ServiceBusy(BusError):
     """The control loop's command queue is full, or it did not take the command in time (HTTP 503)."""
+
+
+class OvertakenByStop(InterlockError):
+    """A command that was waiting when a STOP or E-stop arrived: not run, stop wins over start (HTTP 409)."""
 
 
 class LoopPaths:
@@ -80,7 +86,7 @@ class LoopPaths:
         self.thread: threading.Thread | None = None
         """The loop's thread (:meth:`attach`); until it runs, commands and reads are served in the caller."""
         self.commands: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
-        self.urgent: queue.SimpleQueue[_Command] = queue.SimpleQueue()
+        self.urgent: queue.SimpleQueue[_Urgent] = queue.SimpleQueue()
         """STOP and E-stop: never full (each waits on a connection, and those are bounded), served first."""
         self._published = threading.Condition()
         self._snapshot: Snapshot | None = None
@@ -111,20 +117,31 @@ class LoopPaths:
         """
         answers: list[tuple[Future[Any], Any, BaseException | None]] = []
         with self.lock:
-            sources: tuple[tuple[queue.SimpleQueue[_Command] | queue.Queue[_Command], int], ...] = (
-                (self.urgent, URGENT_PER_TICK), (self.commands, COMMANDS_PER_TICK))
-            for source, bound in sources:
-                for _ in range(bound):
+            stoppers: list[str] = []
+            for _ in range(URGENT_PER_TICK):
+                try:
+                    action, needs_node, future, stopper = self.urgent.get_nowait()
+                except queue.Empty:
+                    break
+                if stopper is not None:
+                    stoppers.append(stopper)
+                self._answer(answers, future, action, needs_node)
+            if stoppers:  # stop wins over start: what waited behind a stop is not run
+                overtaken = OvertakenByStop(f"not run: a stop by {', '.join(dict.fromkeys(stoppers))} arrived while "
+                                            "it waited (stop wins over start); nothing was done")
+                while True:
                     try:
-                        action, needs_node, future = source.get_nowait()
+                        _, _, future = self.commands.get_nowait()
                     except queue.Empty:
                         break
-                    if not future.set_running_or_notify_cancel():
-                        continue  # its request gave up waiting
-                    try:
-                        answers.append((future, self._execute(action, needs_node), None))
-                    except BaseException as exc:  # handed to the waiting request, which maps it to its 4xx/5xx
-                        answers.append((future, None, exc))
+                    if future.set_running_or_notify_cancel():
+                        answers.append((future, None, overtaken))
+            for _ in range(COMMANDS_PER_TICK):
+                try:
+                    action, needs_node, future = self.commands.get_nowait()
+                except queue.Empty:
+                    break
+                self._answer(answers, future, action, needs_node)
             if answers or self._wanted:
                 snapshot = self._take_snapshot()
                 with self._published:
@@ -135,6 +152,15 @@ class LoopPaths:
                 future.set_result(result)
             else:
                 future.set_exception(error)
+
+    def _answer(self, answers: list[tuple[Future[Any], Any, BaseException | None]], future: Future[Any],
+                action: Callable[[Controller], Any], needs_node: bool) -> None:
+        if not future.set_running_or_notify_cancel():
+            return  # its request gave up waiting
+        try:
+            answers.append((future, self._execute(action, needs_node), None))
+        except BaseException as exc:  # handed to the waiting request, which maps it to its 4xx/5xx
+            answers.append((future, None, exc))
 
     # ------------------------------------------------------------------ from the request handlers
     def call(self, action: Callable[[Controller], T], *, needs_node: bool = True,
@@ -158,8 +184,11 @@ class LoopPaths:
             return future.result()  # it started just now: its result is on the way
 
     async def call_urgent(self, action: Callable[[Controller], T], *, needs_node: bool = False,
-                          timeout_s: float = COMMAND_TIMEOUT_S) -> T:
+                          stops: str | None = None, timeout_s: float = COMMAND_TIMEOUT_S) -> T:
         """Have the loop run ``action(controller)`` (a STOP, an E-stop) before anything else at its next tick.
+
+        ``stops`` names who stops: then every command waiting in the command queue is refused, not run
+        (:class:`OvertakenByStop`): stop wins over start.
 
         Never refused as busy: the queue is never full, and the request awaits the answer on the server's event
         loop, taking no thread of its pool. A loop that does not take it within ``timeout_s`` is stalled or dead:
@@ -169,7 +198,7 @@ class LoopPaths:
         if not self._loop_alive():
             return self._in_caller(action, needs_node)
         future: Future[T] = Future()
-        self.urgent.put((action, needs_node, future))
+        self.urgent.put((action, needs_node, future, stops))
         try:
             return await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(future)), timeout_s)
         except TimeoutError:
@@ -179,7 +208,7 @@ class LoopPaths:
 
     def call_soon(self, action: Callable[[Controller], Any]) -> None:
         """Queue ``action(controller)`` first for the loop without waiting (from the records thread; never raises)."""
-        self.urgent.put((action, False, Future()))
+        self.urgent.put((action, False, Future(), None))
 
     def snapshot(self, timeout_s: float = COMMAND_TIMEOUT_S) -> Snapshot:
         """Status and recipe progress as the loop published them: a read takes no slot of the command queue.
@@ -211,6 +240,7 @@ __all__ = [
     "URGENT_PER_TICK",
     "LoopPaths",
     "NodeUnreachable",
+    "OvertakenByStop",
     "ServiceBusy",
     "Snapshot",
 ]

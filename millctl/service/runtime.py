@@ -221,10 +221,14 @@ class ServiceRuntime:
         return self.paths.call(action, needs_node=needs_node, timeout_s=timeout_s)
 
     async def call_urgent(
-        self, action: Callable[[Controller], T], *, needs_node: bool = False, timeout_s: float = COMMAND_TIMEOUT_S,
+        self, action: Callable[[Controller], T], *, needs_node: bool = False, stops: str | None = None,
+        timeout_s: float = COMMAND_TIMEOUT_S,
     ) -> T:
-        """Have the loop run ``action(controller)`` (a STOP, an E-stop) first at its next tick; never refused busy."""
-        return await self.paths.call_urgent(action, needs_node=needs_node, timeout_s=timeout_s)
+        """Have the loop run ``action(controller)`` (a STOP, an E-stop) first at its next tick; never refused busy.
+
+        ``stops`` (who stops) refuses every command waiting behind it: stop wins over start.
+        """
+        return await self.paths.call_urgent(action, needs_node=needs_node, stops=stops, timeout_s=timeout_s)
 
     def call_soon(self, action: Callable[[Controller], Any]) -> None:
         """Queue ``action(controller)`` for the loop without waiting (from the records thread; never raises)."""
