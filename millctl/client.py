@@ -73,6 +73,7 @@ from millctl.client_errors import (
     raise_for_error,
 )
 from millctl.errors import BusError, InterlockError, InvalidInputError
+from millctl.files import FileRefused, read_input_text
 
 CLIENT_HEADER = "X-Millctl-Client"
 LEASE_HEADER = "X-Millctl-Lease"
@@ -125,8 +126,8 @@ def read_recipe_text(path: str | os.PathLike[str]) -> tuple[str, str]:
     """A recipe file's name and text, read on the client's side (the service opens no path a request names)."""
     path = Path(path)
     try:
-        return path.name, path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        return path.name, read_input_text(path)
+    except FileRefused as exc:
         raise InvalidInputError(f"recipe {path}: cannot read it: {exc}") from None
 
 
@@ -431,10 +432,11 @@ def _tls_context() -> ssl.SSLContext:
     return httpx.create_ssl_context()
 
 
-_GONE = (httpx.ConnectError, httpx.RemoteProtocolError, FileNotFoundError, ConnectionError)
-"""What a missing or vanished service looks like to httpx."""
-_LOST = (httpx.ReadError, httpx.WriteError)
-"""A connection broken mid-request: the service may or may not have carried the request out."""
+_GONE = (httpx.ConnectError, httpx.ConnectTimeout, httpx.PoolTimeout, httpx.RemoteProtocolError, FileNotFoundError,
+         ConnectionError)
+"""What a missing, vanished or unreachable service looks like to httpx."""
+_LOST = (httpx.ReadError, httpx.WriteError, httpx.ReadTimeout, httpx.WriteTimeout)
+"""A connection broken, or unanswered, mid-request: the service may or may not have carried the request out."""
 _FAILED = _GONE + _LOST
 _LIMITS = httpx.Limits(keepalive_expiry=CLIENT_KEEP_ALIVE_S)
 _STREAM = Request("GET", "/v1/stream")

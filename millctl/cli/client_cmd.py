@@ -1,8 +1,9 @@
 """``millctl status|set|arm|disarm|stop|estop|reset|watch``: talk to the running service through its API.
 
 One-shot commands take control for their duration and give it back; when
-another client holds it they exit 2 naming the holder. E-stop needs no
-control. Data goes to stdout (``--json`` for scripts), diagnostics to stderr.
+another client holds it they exit 2 naming the holder. E-stop and stop need
+no control: any client may stop the mill at any time (SAFETY 24). Data goes
+to stdout (``--json`` for scripts), diagnostics to stderr.
 Every command names the mill it talks to (config name, bus, simulated or
 real, socket): on stderr, in the status view, and as ``mill`` in JSON.
 """
@@ -24,10 +25,13 @@ if TYPE_CHECKING:
 SIMPLE_COMMANDS = {
     "arm": "arm the node (from DISABLED)",
     "disarm": "disarm the node (from ARMED at standstill)",
-    "stop": "controlled stop: both drives ramp down inside the envelope, heater off",
+    "stop": "controlled stop: both drives ramp down inside the envelope, heater off (needs no control)",
     "estop": "emergency stop (needs no control; always accepted)",
     "reset": "clear a latched trip (drives at standstill, fresh telemetry)",
 }
+
+NEEDS_NO_CONTROL = frozenset({"estop", "stop"})
+"""Commands any client may send while another holds control: stopping is always safe (SAFETY 24)."""
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -54,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
     setp.set_defaults(handler=_set)
     for name, text in SIMPLE_COMMANDS.items():
-        parents = [common] if name == "estop" else [common, take]
+        parents = [common] if name in NEEDS_NO_CONTROL else [common, take]
         sub = subparsers.add_parser(name, parents=parents, help=text)
         sub.set_defaults(handler=_simple, action=name)
     watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)",
@@ -113,8 +117,8 @@ def _set(args: argparse.Namespace) -> int:
 def _simple(args: argparse.Namespace) -> int:
     with _client(args) as client:
         say_mill(client)
-        if args.action == "estop":
-            result = client.estop()
+        if args.action in NEEDS_NO_CONTROL:
+            result = getattr(client, args.action)()
         else:
             with client.control(force=args.force):
                 result = getattr(client, args.action)()

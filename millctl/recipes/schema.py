@@ -22,13 +22,12 @@ Unknown keys are errors (see docs/operations.md#recipes).
 from __future__ import annotations
 
 import hashlib
-import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from millctl.config.loader import read_toml, validate_as
+from millctl.config.loader import parse_toml, read_toml, validate_as
 from millctl.errors import RecipeError
 
 
@@ -159,10 +158,7 @@ class LoadedRecipe(_Strict):
 
 def parse_recipe(text: str, source: str) -> LoadedRecipe:
     """Validate a recipe given as TOML text (as sent to the service); errors name ``source`` like a file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise RecipeError(source, [f"{source}: TOML syntax error: {exc}"]) from None
+    data = parse_toml(text, source, RecipeError)
     recipe = validate_as(Recipe, data, source, RecipeError)
     return LoadedRecipe(recipe=recipe, source=source, sha256=hashlib.sha256(text.encode()).hexdigest())
 

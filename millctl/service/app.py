@@ -1,7 +1,9 @@
 """The service's HTTP API (FastAPI, ``/v1``): status, envelope, control lease, commands, events, stream, recipes.
 
-Commands need the control lease (header ``X-Millctl-Lease``); E-stop needs
-nothing and is always accepted. Every request is validated and every error
+Commands need the control lease (header ``X-Millctl-Lease``); E-stop and a
+controlled STOP need nothing and are accepted from any client at any time
+(SAFETY 24), on a path of their own that no other request can fill
+(:meth:`ServiceRuntime.call_urgent`). Every request is validated and every error
 is JSON (see :mod:`millctl.service.errors`). No route, field or flag turns
 the interlock off (SAFETY 14): every command goes through the controller.
 """
@@ -212,14 +214,24 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         return command(x_millctl_lease, "disarm", lambda c, s: c.disarm(source=s), settles="disarm")
 
     @app.post("/v1/stop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def stop(x_millctl_lease: LeaseId = None) -> CommandOut:
-        """Controlled stop (stop category 1): both drives ramp down inside the envelope, heater off."""
+    async def stop(x_millctl_client: ClientName = None, x_millctl_lease: LeaseId = None) -> CommandOut:
+        """Controlled stop (stop category 1): both drives ramp down inside the envelope, heater off.
 
-        def act(c: Controller, s: str) -> None:
-            rt.recipe.abort_if_active(s)
-            c.stop(source=s)
+        Needs no lease: any client may stop at any time, and a stop is run before any other command waiting
+        (SAFETY 24). The record names who stopped: the lease's holder when the lease is sent, else the client.
+        """
+        who = rt.leases.holder_of(x_millctl_lease) or client_source(x_millctl_client)
 
-        return command(x_millctl_lease, "stop", act, idle=False, settles="stop")
+        def act(c: Controller) -> None:
+            rt.recipe.abort_if_active(who)
+            c.stop(source=who)
+
+        await rt.call_urgent(act, needs_node=True, stops=who)
+        wanted = SETTLES_IN["stop"] | {S.TRIPPED}
+        deadline = time.monotonic() + SETTLE_S
+        while rt.controller.state not in wanted and time.monotonic() < deadline and rt.running and not rt.stopping:
+            await asyncio.sleep(SETTLE_POLL_S)
+        return CommandOut(message="stop", state=rt.controller.state, duration_s=None)
 
     @app.post("/v1/reset", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def reset(x_millctl_lease: LeaseId = None) -> CommandOut:
@@ -227,8 +239,8 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
         return command(x_millctl_lease, "reset", lambda c, s: c.reset(source=s), settles="reset")
 
     @app.post("/v1/estop", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
-    def estop(x_millctl_client: ClientName = None) -> CommandOut:
-        """Emergency stop: needs no lease and is always accepted."""
+    async def estop(x_millctl_client: ClientName = None) -> CommandOut:
+        """Emergency stop: needs no lease and is always accepted, before any other command waiting."""
         who = client_source(x_millctl_client)
 
         def act(c: Controller) -> CommandOut:
@@ -236,7 +248,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
             c.estop(source=who)
             return CommandOut(message="E-STOP", state=c.state)
 
-        return rt.call(act, needs_node=False, urgent=True)
+        return await rt.call_urgent(act, stops=who)
 
     @app.post("/v1/setpoints", response_model=CommandOut, responses=COMMAND_RESPONSES, tags=["command"])
     def setpoints(
@@ -274,7 +286,7 @@ def create_app(runtime: ServiceRuntime) -> FastAPI:
     @app.get("/v1/recipe", response_model=RecipeOut, responses=READ_RESPONSES, tags=["recipe"])
     def recipe() -> RecipeOut:
         """Progress of the current (or last) recipe run."""
-        return rt.call(lambda c: rt.recipe.recipe_out(), needs_node=False)
+        return rt.recipe_view()
 
     @app.post("/v1/recipe/run", response_model=RecipeOut, responses=COMMAND_RESPONSES, tags=["recipe"])
     def recipe_run(body: RecipeRunRequest, x_millctl_lease: LeaseId = None) -> RecipeOut:

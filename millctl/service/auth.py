@@ -20,8 +20,11 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from millctl.api import ErrorCode
 from millctl.errors import InvalidInputError
+from millctl.files import FileRefused, read_input_text
 
 MIN_TOKEN_CHARS = 16
+MAX_TOKEN_FILE_BYTES = 4096
+"""The token file is a line of text: anything longer is refused unread (millctl.files)."""
 
 
 def read_token(path: str | Path) -> str:
@@ -29,9 +32,13 @@ def read_token(path: str | Path) -> str:
     path = Path(path)
     try:
         mode = path.stat().st_mode
-        token = path.read_text(encoding="utf-8").strip().splitlines()[0].strip() if path.stat().st_size else ""
+        text = read_input_text(path, MAX_TOKEN_FILE_BYTES)
+    except FileRefused as exc:
+        raise InvalidInputError(f"service.token_file {path}: cannot read it: {exc}") from None
     except OSError as exc:
         raise InvalidInputError(f"service.token_file {path}: cannot read it: {exc.strerror}") from None
+    lines = text.strip().splitlines()
+    token = lines[0].strip() if lines else ""
     if mode & 0o007:
         raise InvalidInputError(
             f"service.token_file {path}: mode 0o{stat.S_IMODE(mode):o} lets others read the token; "

@@ -5,7 +5,8 @@ command; each accepted command (or another take by the holder) renews it. A
 lease not renewed for ``ttl_s`` has expired: its holder can no longer
 command, and another client may take over only by asking explicitly
 (``force``), so that a takeover is always a deliberate, recorded act. A live
-lease is never taken away; E-stop needs no lease at all.
+lease is never taken away. E-stop and a controlled STOP need no lease at all:
+any client may stop the mill at any time (SAFETY 24).
 """
 
 from __future__ import annotations
@@ -117,6 +118,13 @@ class LeaseManager:
                 )
             lease.renewed_s = now
             return lease
+
+    def holder_of(self, lease_id: str | None) -> str | None:
+        """Who holds the lease ``lease_id`` (live or expired), or None: names a stop's sender; renews nothing."""
+        lease = self._lease
+        if lease is None or lease_id is None or not secrets.compare_digest(lease.lease_id, lease_id):
+            return None
+        return lease.holder
 
     def release(self, lease_id: str | None) -> Lease:
         """Give control back; only with the lease id (expired or not). Return the released lease."""

@@ -1,13 +1,13 @@
 """The service's runtime: one control-loop thread owning the controller, the embedded node and the recipe runner.
 
 Every ``timing.controller_tick_s`` the loop ticks the controller, the recipe
-runner and the node (when embedded), then runs the commands waiting in its
-bounded queue (:meth:`ServiceRuntime.call`). Request handlers never touch the
-controller themselves and never hold the loop's lock: they queue a command
-and wait for its result, so a slow request (a huge body, a slow client)
-cannot delay a heartbeat (SAFETY 19). A full queue is refused at once (503
-``busy``); E-stop has a queue of its own that is served first. Records (events,
-run records, the bus log) are written on a thread of their own
+runner and the node (when embedded), then runs the commands waiting for it.
+Request handlers never touch the controller themselves and never hold the
+loop's lock: they queue a command and wait for its result, so a slow request
+(a huge body, a slow client) cannot delay a heartbeat (SAFETY 19). STOP and
+E-stop, other commands and status reads take three paths, so that no client
+can crowd out another's command (:mod:`.commands`, SAFETY 24). Records
+(events, run records, the bus log) are written on a thread of their own
 (:class:`~millctl.records.RecordQueue`): a full or failing disk is a warning and
 an event, a running recipe is stopped in a controlled way, and the mill stays
 controlled (SAFETY 23). If the loop dies, the heartbeat stops and the node's
@@ -19,25 +19,30 @@ from __future__ import annotations
 
 import logging
 import os
-import queue
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
-from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any, TypeVar
 
 import can
 
 from millctl import __version__
-from millctl.api import EventKind, ServiceOut
+from millctl.api import EventKind, RecipeOut, ServiceOut
 from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
 from millctl.config.paths import service_paths
 from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
-from millctl.errors import BusError
 from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
+from millctl.service.commands import (
+    COMMAND_QUEUE_SIZE,
+    COMMAND_TIMEOUT_S,
+    STATUS_MAX_AGE_S,
+    LoopPaths,
+    NodeUnreachable,
+    ServiceBusy,
+    Snapshot,
+)
 from millctl.service.faults import embeds_node, require_simulated
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
@@ -52,29 +57,11 @@ S = ControllerState
 BUS_LOG_STEM = "bus"
 """The candump bus log of each session: ``<records_dir>/bus/bus_<start time>.log``."""
 
-COMMAND_QUEUE_SIZE = 32
-"""Commands waiting for the control loop; one more is refused at once (503 ``busy``)."""
-COMMANDS_PER_TICK = 8
-"""The loop runs at most this many queued commands after each tick."""
-COMMAND_TIMEOUT_S = 5.0
-"""A request waits this long for the loop to run its command before it is answered 503 (s)."""
-
 EMBEDDED_NODE_WAIT_S = 10.0
 """With the embedded node, the API opens once the controller has seen it (or after this long, s)."""
 
 STOP_BOUND_S = (5.0, 30.0)
 """A shutdown waits for standstill the expected ramp-down time plus 2 s, kept within these bounds (s)."""
-
-
-class NodeUnreachable(BusError):
-    """The controller has not heard from the node (or the control loop is down): nothing can be commanded."""
-
-
-class ServiceBusy(BusError):
-    """The control loop's command queue is full, or it did not take the command in time (HTTP 503)."""
-
-
-_Command = tuple[Callable[[Controller], Any], bool, "Future[Any]"]
 
 
 class ServiceRuntime:
@@ -112,8 +99,8 @@ class ServiceRuntime:
         self.leases = LeaseManager(self.clock, lease_ttl_s)
         self.failed: str | None = None
         self.stopping = False
-        self._commands: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
-        self._urgent: queue.Queue[_Command] = queue.Queue(maxsize=COMMAND_QUEUE_SIZE)
+        self.paths = LoopPaths(self.lock, self._execute, self._take_snapshot, lambda: self.failed)
+        self._commands = self.paths.commands
         session = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime(self.started_unix))
         self.bus_log_path = self.records_dir / "bus" / f"{BUS_LOG_STEM}_{session}_{os.getpid()}.log"
         bus_log = RotatingBusLog(self.bus_log_path, service.rotate_bytes, service.keep_files)
@@ -130,6 +117,7 @@ class ServiceRuntime:
         self._halt = threading.Event()
         self._closed = False
         self._thread = threading.Thread(target=self._loop, name="millctl-control-loop", daemon=True)
+        self.paths.attach(self._thread)
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> None:
@@ -201,20 +189,12 @@ class ServiceRuntime:
                 self.node.tick()
 
     def _run_commands(self) -> None:
-        """Run the queued commands (E-stops first), at most COMMANDS_PER_TICK of the others, under the lock."""
-        with self.lock:
-            for source, bound in ((self._urgent, COMMAND_QUEUE_SIZE), (self._commands, COMMANDS_PER_TICK)):
-                for _ in range(bound):
-                    try:
-                        action, needs_node, future = source.get_nowait()
-                    except queue.Empty:
-                        break
-                    if not future.set_running_or_notify_cancel():
-                        continue  # its request gave up waiting
-                    try:
-                        future.set_result(self._execute(action, needs_node))
-                    except BaseException as exc:  # handed to the waiting request, which maps it to its 4xx/5xx
-                        future.set_exception(exc)
+        """Run the commands waiting (STOPs and E-stops first), then publish the snapshot reads are answered from."""
+        self.paths.run()
+
+    def _take_snapshot(self) -> Snapshot:
+        """What status reads are answered from (on the loop, under the lock)."""
+        return finite(self.controller.status().as_dict()), self.recipe.recipe_out()
 
     def _execute(self, action: Callable[[Controller], T], needs_node: bool) -> T:
         if needs_node and self.controller.state is S.DISCONNECTED:
@@ -230,48 +210,37 @@ class ServiceRuntime:
         return self._thread.is_alive() and self.failed is None
 
     def call(
-        self, action: Callable[[Controller], T], *, needs_node: bool = True, urgent: bool = False,
-        timeout_s: float = COMMAND_TIMEOUT_S,
+        self, action: Callable[[Controller], T], *, needs_node: bool = True, timeout_s: float = COMMAND_TIMEOUT_S,
     ) -> T:
         """Have the control loop run ``action(controller)`` after its next tick and return the result.
 
         Refused at once when the loop is down, the node never answered, or the
-        queue is full; ``urgent`` (E-stop) goes to the queue served first. The
+        queue is full (STOP and E-stop: :meth:`call_urgent`). The
         loop thread itself (and a runtime whose loop never started) runs it here.
         """
-        if threading.current_thread() is self._thread or not self._thread.is_alive():
-            # in the loop itself, or no loop to ask (not started, or ended): here, under the lock
-            if self._thread.ident is not None and needs_node:
-                raise NodeUnreachable(self.failed or "the control loop is not running")
-            with self.lock:
-                return self._execute(action, needs_node)
-        future: Future[T] = Future()
-        try:
-            (self._urgent if urgent else self._commands).put_nowait((action, needs_node, future))
-        except queue.Full:
-            raise ServiceBusy(
-                f"the control loop has {COMMAND_QUEUE_SIZE} commands waiting: try again (nothing was done)"
-            ) from None
-        try:
-            return future.result(timeout=timeout_s)
-        except FutureTimeout:
-            if future.cancel():
-                raise ServiceBusy(f"the control loop did not take the command within {timeout_s:.0f} s "
-                                  "(nothing was done)") from None
-            return future.result()  # it started just now: its result is on the way
+        return self.paths.call(action, needs_node=needs_node, timeout_s=timeout_s)
+
+    async def call_urgent(
+        self, action: Callable[[Controller], T], *, needs_node: bool = False, stops: str | None = None,
+        timeout_s: float = COMMAND_TIMEOUT_S,
+    ) -> T:
+        """Have the loop run ``action(controller)`` (a STOP, an E-stop) first at its next tick; never refused busy.
+
+        ``stops`` (who stops) refuses every command waiting behind it: stop wins over start.
+        """
+        return await self.paths.call_urgent(action, needs_node=needs_node, stops=stops, timeout_s=timeout_s)
 
     def call_soon(self, action: Callable[[Controller], Any]) -> None:
         """Queue ``action(controller)`` for the loop without waiting (from the records thread; never raises)."""
-        future: Future[Any] = Future()
-        try:
-            self._urgent.put_nowait((action, False, future))
-        except queue.Full:
-            log.error("the control loop's urgent queue is full; dropped %s", action)
+        self.paths.call_soon(action)
 
-    def status(self) -> dict[str, Any]:
-        """The controller's status, JSON-ready (non-finite floats as None)."""
-        data: dict[str, Any] = self.call(lambda c: finite(c.status().as_dict()), needs_node=False)
-        return data
+    def status(self, timeout_s: float = COMMAND_TIMEOUT_S) -> dict[str, Any]:
+        """The controller's status, JSON-ready (non-finite floats as None), from the loop's snapshot."""
+        return self.paths.snapshot(timeout_s)[0]
+
+    def recipe_view(self, timeout_s: float = COMMAND_TIMEOUT_S) -> RecipeOut:
+        """The current (or last) recipe run's progress (``GET /v1/recipe``), from the loop's snapshot."""
+        return self.paths.snapshot(timeout_s)[1]
 
     def describe(self) -> ServiceOut:
         """Which mill this service controls, and how (``GET /v1/service``)."""
@@ -393,6 +362,7 @@ __all__ = [
     "COMMAND_QUEUE_SIZE",
     "COMMAND_TIMEOUT_S",
     "EMBEDDED_NODE_WAIT_S",
+    "STATUS_MAX_AGE_S",
     "STOP_BOUND_S",
     "NodeUnreachable",
     "ServiceBusy",

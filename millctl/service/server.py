@@ -35,6 +35,7 @@ from millctl.config.paths import service_paths
 from millctl.errors import BusError, ConfigError, ExitCode
 from millctl.service.app import create_app
 from millctl.service.auth import TokenGuard, read_token
+from millctl.service.connections import LISTEN_BACKLOG, guarded_protocol
 from millctl.service.faults import require_simulated
 from millctl.service.runtime import EMBEDDED_NODE_WAIT_S, ServiceRuntime
 
@@ -77,9 +78,12 @@ class _Server(uvicorn.Server):
 
 
 def server_config(app: ASGIApp) -> uvicorn.Config:
-    """The service's uvicorn settings: quiet, no lifespan, idle connections kept past the client's expiry."""
+    """The service's uvicorn settings: quiet, no lifespan, idle connections kept past the client's expiry.
+
+    Its protocol bounds each request's arrival and the number of connections (:mod:`.connections`).
+    """
     return uvicorn.Config(app, log_level="warning", lifespan="off", timeout_graceful_shutdown=2, access_log=False,
-                          timeout_keep_alive=SERVICE_KEEP_ALIVE_S)
+                          timeout_keep_alive=SERVICE_KEEP_ALIVE_S, http=guarded_protocol(), backlog=LISTEN_BACKLOG)
 
 
 @contextlib.contextmanager
@@ -142,14 +146,14 @@ def bind_unix(path: Path, mode: int) -> socket.socket:
     finally:
         os.umask(old_umask)
     os.chmod(path, mode)
-    sock.listen(128)
+    sock.listen(LISTEN_BACKLOG)
     return sock
 
 
 def bind_tcp(port: int) -> socket.socket:
     """Bind and listen on loopback TCP."""
     try:
-        return socket.create_server(("127.0.0.1", port), backlog=128)
+        return socket.create_server(("127.0.0.1", port), backlog=LISTEN_BACKLOG)
     except OSError as exc:
         raise BusError(f"cannot listen on 127.0.0.1:{port} (service.tcp_port): {exc.strerror}") from exc
 

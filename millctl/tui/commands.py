@@ -83,8 +83,8 @@ class Commanding(MillView):
         self.send("disarm", lambda c: c.disarm())
 
     def action_stop(self) -> None:
-        """Controlled stop (also aborts a running recipe)."""
-        self.send("stop", lambda c: c.stop())
+        """Controlled stop (also aborts a running recipe): no lease, from any station (SAFETY 24)."""
+        self.send("stop", lambda c: c.stop(), take=False)
 
     def action_reset(self) -> None:
         """Clear a latched trip."""

@@ -6,9 +6,10 @@ the command in time is answered 503 ``busy`` with nothing done, and an answer do
 
 from __future__ import annotations
 
+import asyncio
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
@@ -19,6 +20,7 @@ from millctl.clock import ManualClock
 from millctl.config import load_config
 from millctl.controller import Controller, ControllerState
 from millctl.service import ServiceRuntime, create_app
+from millctl.service.commands import OvertakenByStop
 from millctl.service.runtime import COMMAND_QUEUE_SIZE, ServiceBusy
 from tests.support.service import write_config
 
@@ -101,3 +103,94 @@ async def test_an_answer_does_not_wait_for_a_state_when_no_loop_runs(
         assert answer.json()["state"] != ControllerState.ARMED  # as it was, nothing ticked
     finally:
         stepped.close()
+
+
+def _fill_the_queue(runtime: ServiceRuntime, done: list[int], errors: list[BaseException]) -> list[threading.Thread]:
+    """With the loop held (the caller holds its lock), queue COMMAND_QUEUE_SIZE commands, each recording its index
+    in ``done`` when it runs, or what it raised in ``errors``."""
+    waiting: list[threading.Thread] = []
+
+    def queue_one(i: int) -> None:
+        try:
+            runtime.call(lambda c: done.append(i), needs_node=False)
+        except BaseException as exc:  # kept for the test to read
+            errors.append(exc)
+
+    for i in range(COMMAND_QUEUE_SIZE):
+        thread = threading.Thread(target=queue_one, args=(i,))
+        thread.start()
+        waiting.append(thread)
+    deadline = time.monotonic() + QUEUED_WITHIN_S
+    while runtime._commands.qsize() < COMMAND_QUEUE_SIZE:
+        assert time.monotonic() < deadline, f"{runtime._commands.qsize()} of {COMMAND_QUEUE_SIZE} queued"
+        time.sleep(0.01)
+    return waiting
+
+
+def _in_thread(run: Callable[[], object]) -> tuple[threading.Thread, list[object]]:
+    got: list[object] = []
+
+    def target() -> None:
+        try:
+            got.append(run())
+        except BaseException as exc:  # the test reads it
+            got.append(exc)
+
+    thread = threading.Thread(target=target)
+    thread.start()
+    return thread, got
+
+
+def test_a_stop_with_the_command_queue_full_is_not_busy_and_runs_first(runtime: ServiceRuntime) -> None:
+    """STOP and E-stop take a queue of their own, never full and served first (SAFETY 24; issue 37, defect 3)."""
+    done: list[int] = []
+    errors: list[BaseException] = []
+    with runtime.lock:
+        waiting = _fill_the_queue(runtime, done, errors)
+        stop, got = _in_thread(lambda: asyncio.run(runtime.call_urgent(lambda c: done.append(-1))))
+        deadline = time.monotonic() + QUEUED_WITHIN_S
+        while runtime.paths.urgent.qsize() < 1 and not got:
+            assert time.monotonic() < deadline, "the stop was never queued"
+            time.sleep(0.01)
+        assert not got, got  # queued, not refused busy
+    stop.join(QUEUED_WITHIN_S)
+    for thread in waiting:
+        thread.join(QUEUED_WITHIN_S)
+    assert got == [None]
+    assert done[0] == -1 and sorted(done[1:]) == list(range(COMMAND_QUEUE_SIZE))
+
+
+def test_a_stop_refuses_the_commands_waiting_behind_it(runtime: ServiceRuntime) -> None:
+    """Stop wins over start: what was queued when a stop arrived is refused, nothing of it done."""
+    done: list[int] = []
+    errors: list[BaseException] = []
+    with runtime.lock:
+        waiting = _fill_the_queue(runtime, done, errors)
+        stop, got = _in_thread(lambda: asyncio.run(runtime.call_urgent(lambda c: done.append(-1),
+                                                                       stops="api:operator")))
+        deadline = time.monotonic() + QUEUED_WITHIN_S
+        while runtime.paths.urgent.qsize() < 1:
+            assert time.monotonic() < deadline, "the stop was never queued"
+            time.sleep(0.01)
+    stop.join(QUEUED_WITHIN_S)
+    for thread in waiting:
+        thread.join(QUEUED_WITHIN_S)
+    assert done == [-1] and got == [None]
+    assert len(errors) == COMMAND_QUEUE_SIZE and all(isinstance(e, OvertakenByStop) for e in errors), errors[:2]
+    assert "a stop by api:operator arrived while it waited" in str(errors[0])
+    assert runtime.call(lambda c: "after", needs_node=False) == "after"  # commands after the stop run
+
+
+def test_a_status_read_takes_no_slot_of_a_full_command_queue(runtime: ServiceRuntime) -> None:
+    """Reads are answered from the loop's snapshot: a full command queue refuses none (issue 37, defect 3)."""
+    done: list[int] = []
+    errors: list[BaseException] = []
+    with runtime.lock:
+        waiting = _fill_the_queue(runtime, done, errors)
+        read, got = _in_thread(runtime.status)
+        time.sleep(0.05)
+        assert not any(isinstance(g, ServiceBusy) for g in got), got
+    read.join(QUEUED_WITHIN_S)
+    for thread in waiting:
+        thread.join(QUEUED_WITHIN_S)
+    assert len(got) == 1 and isinstance(got[0], dict) and got[0]["state"] == "DISCONNECTED", got
