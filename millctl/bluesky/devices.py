@@ -115,6 +115,10 @@ class Mill(StandardReadable):
         self.service: ServiceOut | None = None
         """The service as it was at ``connect``: mill, configuration sha256, law, margin (the start documents')."""
         self._noted_run = ""
+        self.suspenders = 0
+        """Suspenders watching this mill (:class:`~millctl.bluesky.suspenders.SuspendWhenMillNotReady` counts
+        itself): with one, a move that meets a trip waits for the suspension's ``stop()`` instead of failing."""
+        self._stop_requested = False
         self.rotary = Axis("rpm", lambda v: self._move_axis(rotary_rpm=v), self.stop)
         self.vibration = Axis("rpm", lambda v: self._move_axis(vibration_rpm=v), self.stop)
         self.furnace = Axis("degC", self._heat, self.stop)
@@ -229,8 +233,20 @@ class Mill(StandardReadable):
             yield update
 
     async def stop(self, success: bool = True) -> None:
-        """The controlled stop: both drives ramp down inside the envelope, heater off (nothing if at rest)."""
+        """The controlled stop: both drives ramp down inside the envelope, heater off (nothing if at rest).
+
+        A move in progress ends at the next status (successfully: the RunEngine stops what it moved when it
+        suspends, and replays the move after the resume).
+        """
+        self._stop_requested = True
         await self.require_link().stop()
+
+    async def _until_stopped(self, failure: Exception) -> None:
+        """A trip under a suspender: wait for the suspension's stop(), then end the move; without one, fail."""
+        if not self.suspenders:
+            raise failure
+        while not self._stop_requested:
+            await self.require_link().next_status()
 
     def at_point(self, rotary_rpm: float, vibration_rpm: float) -> bool:
         """Whether the latest status shows the mill running at the point, within the settle tolerance."""
@@ -252,6 +268,7 @@ class Mill(StandardReadable):
     async def _move(self, rotary_rpm: float, vibration_rpm: float, temp_c: float | None, *, watch: str = "rotary"
                     ) -> AsyncIterator[WatcherUpdate[float]]:
         link = self.require_link()
+        self._stop_requested = False
         status = await link.refresh()
         to_rest = rotary_rpm == vibration_rpm == 0.0 and temp_c is None
         if status.state is S.TRIPPED:
@@ -275,7 +292,12 @@ class Mill(StandardReadable):
         steady_since: float | None = None
         while True:
             status = await link.next_status()
+            if self._stop_requested:
+                return
             failure = move_failure(status, rotary_rpm, vibration_rpm)
+            if isinstance(failure, MillTripped):
+                await self._until_stopped(failure)
+                return
             if failure is not None:
                 raise failure
             yield WatcherUpdate(current=_num(getattr(status, f"measured_{watch}_rpm")), initial=initial,
@@ -295,6 +317,7 @@ class Mill(StandardReadable):
 
     async def _heat(self, temp_c: float) -> AsyncIterator[WatcherUpdate[float]]:
         link = self.require_link()
+        self._stop_requested = False
         status = await link.refresh()
         start = _num(status.furnace_temp_c)
         async with link.commanding() as client:
@@ -304,8 +327,12 @@ class Mill(StandardReadable):
         steady_since: float | None = None
         while True:
             status = await link.next_status()
+            if self._stop_requested:
+                return
             if status.state is S.TRIPPED:
-                raise MillTripped(f"the mill tripped while heating to {temp_c:g} °C: {status.trip_cause}")
+                await self._until_stopped(MillTripped(f"the mill tripped while heating to {temp_c:g} °C: "
+                                                      f"{status.trip_cause}"))
+                return
             now_c = _num(status.furnace_temp_c)
             yield WatcherUpdate(current=now_c, initial=start, target=temp_c, name=f"{self.name}-furnace",
                                 unit="degC", precision=1)

@@ -19,7 +19,7 @@ from bluesky.run_engine import in_bluesky_event_loop
 from bluesky.suspenders import SuspenderBase
 
 from millctl.bluesky.devices import Mill
-from millctl.bluesky.link import Readiness
+from millctl.bluesky.link import Readiness, S
 
 SUSPEND_ON = frozenset({Readiness.TRIPPED, Readiness.LEASE_LOST})
 
@@ -58,6 +58,13 @@ class SuspendWhenMillNotReady(SuspenderBase):
         with self._lock:
             self.RE = RE
         _in_loop(RE, lambda: self._sig.subscribe_reading(self))
+        self._mill.suspenders += 1
+
+    def remove(self) -> None:
+        """Stop watching; the mill's moves fail on a trip again once no suspender watches."""
+        if self.RE is not None:
+            self._mill.suspenders -= 1
+        super().remove()  # type: ignore[no-untyped-call]
 
     def _should_suspend(self, value: Mapping[str, Any] | str) -> bool:
         return reading_value(value) in SUSPEND_ON
@@ -71,7 +78,8 @@ class SuspendWhenMillNotReady(SuspenderBase):
         link = self._mill.link
         status = None if link is None else link.status
         why = "" if status is None else f"{status.state} {status.trip_cause}".strip()
-        lost = "" if link is None or not link.lost_reason else f"; lease: {link.lost_reason}"
+        lost = "" if link is None or not link.lost_reason or status is None or status.state is S.TRIPPED \
+            else f"; lease: {link.lost_reason}"
         return f"mill {self._mill.name}: {why}{lost} — {self._tripped_message}"
 
 
