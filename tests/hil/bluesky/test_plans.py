@@ -12,9 +12,10 @@ import bluesky.plan_stubs as bps
 import pytest
 from bluesky.run_engine import RunEngineResult
 from bluesky.utils import FailedStatus
+from ophyd_async.core import soft_signal_rw
 
 from millctl.api import ControllerState, EventKind, RunState, StatusOut
-from millctl.bluesky.plans import PreflightRefused, mill_at, run_recipe
+from millctl.bluesky.plans import PreflightRefused, mill_and_measure, mill_at, ramp_through, run_recipe
 from millctl.client import InterlockRefusal
 from millctl.records import read_records
 from tests.hil.bluesky.conftest import Engine
@@ -166,3 +167,27 @@ def test_a_recipe_as_a_plan_and_with_recipe_run_give_the_same_steps_and_outcome(
     assert as_plan == as_cli
     assert as_plan[1] == "DONE"
     assert [s[:2] for s in as_plan[0]] == [(e, n) for n in range(1, 5) for e in ("step_start", "step_end")]
+
+
+def test_milling_with_measurement_pauses_the_drives_for_each_measurement_and_goes_on(
+        service: Service, engine: Engine) -> None:
+    _at_rest(service)
+    mill = engine.connect(service.socket)
+    xrd = soft_signal_rw(float, 42.0, name="xrd", units="counts")
+    with service.client("watch") as watch:
+        before = watch.events(after=0, limit=1).last_seq
+        with pytest.raises(PreflightRefused, match="before any move"):  # the second point leaves the envelope
+            engine.RE(ramp_through(mill, [(60.0, 300.0), (250.0, 800.0)], dwell_s=1.0))
+        assert not [e for e in watch.events(after=before).events if e.kind is EventKind.COMMAND]
+    engine.RE(mill_and_measure(mill, 60.0, 300.0, mill_s=3.0, cycles=2, detectors=[xrd], period_s=1.0))
+    measurements = engine.of("event", "measurement")
+    assert len(measurements) == 2
+    for event in measurements:
+        assert event["data"]["xrd"] == 42.0
+        assert max(event["data"]["mill-rotary"], event["data"]["mill-vibration"]) < TOLERANCE_RPM  # drives paused
+    milling = engine.of("event", "primary")
+    assert milling and all(abs(e["data"]["mill-rotary"] - 60.0) <= TOLERANCE_RPM for e in milling)
+    first, second = (m["time"] for m in measurements)
+    assert any(first < e["time"] < second for e in milling)  # it went on milling between the measurements
+    (stop,) = engine.of("stop")
+    assert stop["exit_status"] == "success"
