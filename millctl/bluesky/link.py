@@ -127,6 +127,8 @@ class ServiceLink:
         self._renewed_s = 0.0
         self._renew_s = 10.0
         self._updated = asyncio.Event()
+        self._lease_lock = asyncio.Lock()
+        """One keeper at a time: the poller and a trigger or a move may refresh together."""
         self._task: asyncio.Task[None] | None = None
 
     @property
@@ -162,7 +164,11 @@ class ServiceLink:
         self.status = await self.client.status()
         self.control = await self.client.control_state()
         self.error = None
-        await self._keep_lease(self.status, self.control)
+        async with self._lease_lock:
+            try:
+                await self._keep_lease(self.status, self.control)
+            except InterlockError as exc:  # e.g. control taken by another client in between: judged next poll
+                log.warning("lease keeper: %s", exc)
         self._publish()
         return self.status
 
@@ -190,8 +196,6 @@ class ServiceLink:
                     log.warning("mill service not answering: %s", exc)
                 self.error = exc
                 self._publish()
-            except InterlockError as exc:  # a lease call refused in a way the keeper did not expect
-                log.warning("lease keeper: %s", exc)
 
     # ------------------------------------------------------------------ the lease
     async def take(self) -> None:
@@ -220,7 +224,8 @@ class ServiceLink:
                 self._lose(f"control is {'held by ' + str(control.holder) if control.held else 'free'}"
                            f"{' (lease expired)' if control.expired else ''}")
             elif status.state is S.TRIPPED:
-                await self.client.release_control()
+                with contextlib.suppress(InterlockError):
+                    await self.client.release_control()
                 self._lose(f"given back to the operator: the mill tripped ({status.trip_cause})")
             elif time.monotonic() - self._renewed_s >= self._renew_s:
                 try:
