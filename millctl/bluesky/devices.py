@@ -290,8 +290,8 @@ class Mill(StandardReadable):
         initial = _num(getattr(status, f"measured_{watch}_rpm"))
         target = rotary_rpm if watch == "rotary" else vibration_rpm
         steady_since: float | None = None
+        status = await link.refresh()  # read after the command: an older answer still on its way is dropped
         while True:
-            status = await link.next_status()
             if self._stop_requested:
                 return
             failure = move_failure(status, rotary_rpm, vibration_rpm)
@@ -314,6 +314,7 @@ class Mill(StandardReadable):
                 raise TimeoutError(f"the drives did not settle within ±{self.settle.tolerance_rpm:g} rpm of "
                                    f"{rotary_rpm:g}/{vibration_rpm:g} rpm within {self.settle.timeout_s:g} s of the "
                                    f"planned ramp ({answer.duration_s or 0.0:.1f} s): off by {off} rpm")
+            status = await link.next_status()
 
     async def _heat(self, temp_c: float) -> AsyncIterator[WatcherUpdate[float]]:
         link = self.require_link()

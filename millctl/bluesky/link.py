@@ -105,6 +105,12 @@ def at_rest(status: StatusOut) -> bool:
             and all(m is not None and m < STANDSTILL_RPM for m in measured))
 
 
+def _older(status: StatusOut, than: StatusOut | None) -> bool:
+    """Whether ``status`` was taken before ``than`` (by the controller's clock): a stale answer, never published."""
+    return (than is not None and status.time_s is not None and than.time_s is not None
+            and status.time_s < than.time_s)
+
+
 class ServiceLink:
     """One :class:`AsyncClient`, polled; the latest status and lease state; the lease kept while staged.
 
@@ -161,16 +167,20 @@ class ServiceLink:
 
     async def refresh(self) -> StatusOut:
         """A fresh status and lease state, published; the lease kept."""
-        self.status = await self.client.status()
-        self.control = await self.client.control_state()
+        status = await self.client.status()
+        control = await self.client.control_state()
+        if _older(status, self.status):  # asked before a newer answer arrived (a poll overtaken by a command's read)
+            assert self.status is not None
+            return self.status
+        self.status, self.control = status, control
         self.error = None
         async with self._lease_lock:
             try:
-                await self._keep_lease(self.status, self.control)
+                await self._keep_lease(status, control)
             except InterlockError as exc:  # e.g. control taken by another client in between: judged next poll
                 log.warning("lease keeper: %s", exc)
         self._publish()
-        return self.status
+        return status
 
     async def next_status(self) -> StatusOut:
         """The status of the next poll (raises the poll's error when the service stops answering)."""

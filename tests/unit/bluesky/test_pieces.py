@@ -13,6 +13,7 @@ from millctl.bluesky.link import (
     MoveInterrupted,
     Readiness,
     ServiceLink,
+    _older,
     at_rest,
     move_failure,
     off_target_rpm,
@@ -31,7 +32,8 @@ S = ControllerState
 def status(state: ControllerState = S.RUNNING, **fields: Any) -> StatusOut:
     values: dict[str, Any] = {"state": state, "trip_cause": "", "target_rotary_rpm": 150.0,
                               "target_vibration_rpm": 800.0, "measured_rotary_rpm": 150.0,
-                              "measured_vibration_rpm": 800.0, "furnace_target_c": None, "ramp_remaining_s": 0.0}
+                              "measured_vibration_rpm": 800.0, "furnace_target_c": None, "ramp_remaining_s": 0.0,
+                              "time_s": 10.0}
     return StatusOut.model_construct(**{**values, **fields})
 
 
@@ -67,6 +69,13 @@ def test_off_target_and_at_rest() -> None:
     assert at_rest(resting)
     assert not at_rest(resting.model_copy(update={"measured_rotary_rpm": 3.0}))
     assert not at_rest(resting.model_copy(update={"furnace_target_c": 300.0}))
+
+
+def test_a_status_taken_before_the_one_published_is_stale() -> None:
+    newer = status(time_s=12.0)
+    assert _older(status(time_s=11.5), newer)
+    assert not _older(status(time_s=12.5), newer) and not _older(status(time_s=11.0), None)
+    assert not _older(status(time_s=None), newer)
 
 
 class FakeClient:
