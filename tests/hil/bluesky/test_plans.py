@@ -95,6 +95,9 @@ def test_a_move_outside_the_envelope_fails_with_the_interlocks_refusal_and_nothi
         assert isinstance(refusal, InterlockRefusal), repr(refusal)
         assert refusal.refusals and refusal.refusals[0].value == 250.0
         assert refusal.refusals[0].limit is not None and refusal.refusals[0].limit < 250.0
+        with pytest.raises(FailedStatus) as failed:  # one axis alone: the other keeps its target (0)
+            engine.RE(bps.mv(mill.rotary, 250.0))
+        assert isinstance(failed.value.__cause__, InterlockRefusal), repr(failed.value.__cause__)
         with pytest.raises(PreflightRefused, match="before any move"):  # the plan: refused by the pre-flight
             engine.RE(mill_at(mill, 250.0, 800.0, duration_s=5.0))
         status = watch.status()
