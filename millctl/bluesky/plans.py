@@ -84,15 +84,16 @@ def hold_at(mill: Mill, point: MillPoint, seconds: float, detectors: Sequence[Re
             period_s: float = 1.0) -> Plan[float]:
     """Keep the mill at ``point`` for ``seconds`` of verified time there, reading every ``period_s``; return it.
 
-    Each pass is a checkpoint: after a suspension the pass is replayed, finds the mill away from the point (it
-    tripped and stopped) and moves it back before any more time counts.
+    A checkpoint comes before each move and after each reading, so a suspension replays the move it cut short,
+    or only the wait; the next pass then finds the mill away from the point (it tripped and stopped) and moves it
+    back before any more time counts.
     """
     done_s = 0.0
     last_s: float | None = None
     while done_s < seconds:
-        yield from bps.checkpoint()
         if not mill.at_point(point.rotary_rpm, point.vibration_rpm):
             last_s = None
+            yield from bps.checkpoint()
             yield from bps.mv(mill, point)
             continue
         yield from bps.trigger_and_read([mill, *detectors])
@@ -100,6 +101,7 @@ def hold_at(mill: Mill, point: MillPoint, seconds: float, detectors: Sequence[Re
         if last_s is not None:
             done_s += now_s - last_s
         last_s = now_s
+        yield from bps.checkpoint()
         if done_s < seconds:
             yield from bps.sleep(min(period_s, seconds - done_s))
     return done_s

@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 from bluesky.run_engine import RunEngineResult
@@ -12,6 +13,7 @@ from bluesky.run_engine import RunEngineResult
 from millctl.api import ControllerState, EventKind, SimFaultName
 from millctl.bluesky import SuspendWhenMillNotReady
 from millctl.bluesky.plans import mill_at
+from millctl.client import ServiceRefused
 from tests.hil.bluesky.conftest import Engine
 from tests.support.service import Service, private_dir, start_service, wait_for, write_config
 
@@ -39,13 +41,21 @@ def _operator(service: Service, engine: Engine, failures: list[BaseException]) -
             instructor.inject_fault(SimFaultName.VIB_STALL)
             wait_for(lambda: operator.status().state is ControllerState.TRIPPED, 60.0, "the stall's trip")
             instructor.inject_fault(SimFaultName.CLEAR)
-            wait_for(lambda: max(operator.status().measured_rotary_rpm or 0.0,
-                                 operator.status().measured_vibration_rpm or 0.0) < 1.0, 120.0, "standstill")
             wait_for(lambda: not operator.control_state().held, 60.0, "the plan giving control back")
-            with operator.control():
-                operator.reset()
-                wait_for(lambda: operator.status().state is ControllerState.DISABLED, 30.0, "the reset")
-                operator.arm()
+
+            def reset_and_arm() -> bool:
+                """As an operator does: reset once the drives are still (a refusal: try again), then arm."""
+                try:
+                    with operator.control():
+                        if operator.status().state is ControllerState.TRIPPED:
+                            operator.reset()
+                        wait_for(lambda: operator.status().state is ControllerState.DISABLED, 30.0, "the reset")
+                        operator.arm()
+                except ServiceRefused:  # not at standstill yet (sensor noise counts), or control not free yet
+                    return False
+                return True
+
+            wait_for(reset_and_arm, 180.0, "the operator's reset and arm")
     except BaseException as exc:  # seen by the test after the plan
         failures.append(exc)
 
@@ -68,13 +78,17 @@ def test_a_trip_mid_plan_suspends_it_and_it_resumes_after_reset_and_arm(drill_se
     assert "TRIPPED" in interruption["data"]["interruption"]
     suspended = interruption["time"]
     primary = engine.of("event", "primary")
+    def at_point(event: dict[str, Any]) -> bool:
+        data = event["data"]
+        return bool(data["mill-state"] == "RUNNING" and abs(data["mill-rotary"] - 150.0) <= 5.0)
+
     before = [e for e in primary if e["time"] < suspended]
-    after = [e for e in primary if e["time"] > suspended]
-    assert len(before) >= 3 and after
-    assert all(abs(e["data"]["mill-rotary"] - 150.0) <= 5.0 for e in before + after)
-    assert all(e["data"]["mill-state"] == "RUNNING" for e in after)
+    after = [e for e in primary if e["time"] > suspended and at_point(e)]
+    assert len(before) >= 3 and all(at_point(e) for e in before[:3])
+    assert after and at_point(primary[-1])  # back at the point after the resume, to the end
     # the hold was completed after the resume: time at the point on both sides adds up to the 10 s
-    held_s = (before[-1]["time"] - before[0]["time"]) + (after[-1]["time"] - after[0]["time"])
+    held = [e for e in before if at_point(e)]
+    held_s = (held[-1]["time"] - held[0]["time"]) + (after[-1]["time"] - after[0]["time"])
     assert held_s >= 10.0 - 1.0 - 1e-6, held_s  # at most one reading period lost to the trip
     assert time.monotonic() - started > 10.0
     with drill_service.client("watch") as watch:
