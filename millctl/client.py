@@ -284,6 +284,11 @@ def _recipe_run_text(name: str, text: str) -> Request:
 def _recipe_check(path: str | os.PathLike[str]) -> Request:
     """Pre-flight a recipe file against the service's envelope: read here, sent by content; nothing starts."""
     name, text = read_recipe_text(path)
+    return _recipe_check_text(name, text)
+
+
+def _recipe_check_text(name: str, text: str) -> Request:
+    """Pre-flight a recipe given as its TOML text, under ``name``; nothing starts (no control needed)."""
     return _post("/v1/recipe/check", {"name": name, "text": text})
 
 
@@ -470,6 +475,7 @@ class Operations(_Base):
     recipe_resume_run = Operation(RecipeResumeOut, _recipe_resume_run)
     recipe_close_run = Operation(UnfinishedRunOut, _recipe_close_run)
     recipe_check = Operation(RecipeCheckOut, _recipe_check)
+    recipe_check_text = Operation(RecipeCheckOut, _recipe_check_text)
     faults = Operation(FaultsOut, _faults)
     inject_fault = Operation(FaultsOut, _inject_fault)
 
