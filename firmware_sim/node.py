@@ -295,7 +295,7 @@ class Node:
         bits, present = self._fault_bits, NO_FAULTS
         if FaultFlag.WATCHDOG in bits and not self.link.heartbeat_live(now):
             present |= FaultFlag.WATCHDOG
-        if FaultFlag.E2E_LINK in bits and self.link.faulted:
+        if FaultFlag.E2E_LINK in bits and self.link.errors_present(now):
             present |= FaultFlag.E2E_LINK
         if FaultFlag.OVERTEMP in bits and self.furnace.temp_c >= self.config.furnace.over_temp_c:
             present |= FaultFlag.OVERTEMP
