@@ -215,10 +215,11 @@ def test_a_drive_whose_sensor_reads_rest_is_not_at_rest_while_its_model_still_tu
         bench.step(bench.tick_s)
         bench.inject(SimFaultCode.SENSOR_STUCK)  # at standstill: both sensors read 0 from now on
         bench.arm()
-        bench.setpoints(*turning)
+        bench.hold = Setpoints(*turning, 25.0, False)  # refreshed as the controller does (SAFETY 26)
         bench.step(1.5)
         assert state(bench) is NodeState.RUNNING and node.fault_bits == 0, turning
         assert node.measured_speeds_rpm == (0.0, 0.0)
+        bench.hold = Setpoints(0.0, 0.0, 25.0, False)
         bench.setpoints(0.0, 0.0)
         bench.step(bench.tick_s)
         assert max(node.true_speeds_rpm) > tolerance_rpm, turning
