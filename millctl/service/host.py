@@ -117,6 +117,15 @@ class HostWatch:
             self.starvation = None
         self._tripped = tripped
 
+    def summary(self) -> str:
+        """The session's loop lateness in one sentence (recorded as the service stops)."""
+        f = self.lateness
+        return (
+            f"control loop lateness over {f.ticks} ticks: mean {f.mean_s * 1e3:.2f} ms, max {f.max_s * 1e3:.0f} ms; "
+            f"{f.late_ticks} tick{'' if f.late_ticks == 1 else 's'} late by {f.warn_s * 1e3:.0f} ms or more "
+            f"(the node's watchdog allows {f.bound_s * 1e3:.0f} ms)"
+        )
+
     def as_dict(self) -> dict[str, Any]:
         """The loop's lateness figures (ms) and the last host-starvation trip, JSON-ready."""
         return {**self.lateness.as_dict(), "starvation": self.starvation}

@@ -379,6 +379,8 @@ class ServiceRuntime:
                     + ("" if stopped else f" (no standstill within {bound_s:.0f} s)"),
                     standstill=stopped,
                 )
+                self.journal.add(EventKind.HOST, "service", self.host.summary(), session=True,
+                                 **self.host.lateness.as_dict())
         self.close()
 
     def close(self) -> None:
