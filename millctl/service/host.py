@@ -1,7 +1,7 @@
 """Know the host (SAFETY 27): the control loop's lateness, its warnings, and trips the host caused.
 
 The service's loop hands every tick's lateness to :class:`HostWatch`
-(:mod:`millctl.service.looptime` keeps the figures). A tick late by half the
+(:mod:`millctl.looptime` keeps the figures). A tick late by half the
 node's watchdog bound or more is a warning: in the log, and as a ``host``
 event (at most one per :data:`WARN_EVERY_S`, counting the late ticks in
 between), which the TUI shows as a notification. A trip whose cause is the
@@ -25,17 +25,13 @@ from typing import Any
 from millctl.api import EventKind
 from millctl.config.models import MillConfig
 from millctl.controller import Controller, ControllerState
-from millctl.service.looptime import LoopLateness
+from millctl.looptime import HOST_CAUSES, REALTIME_DOC, LoopLateness, starvation_message
 from millctl.service.sdnotify import Notifier
 
 log = logging.getLogger(__name__)
 
 WARN_EVERY_S = 5.0
 """At most one late-loop warning event in this long (s); the late ticks in between are counted in the next."""
-HOST_CAUSES = ("WATCHDOG", "stale")
-"""Trip causes a late loop brings about: the node heard no heartbeat in time, or the controller no telemetry."""
-REALTIME_DOC = "docs/deployment.md#real-time-priority"
-
 Record = Callable[..., Any]
 """``journal.add(kind, source, message, **data)``."""
 
@@ -52,14 +48,6 @@ def realtime_policy_problem() -> str | None:
     return (
         f"the service runs at scheduling policy {names.get(policy, str(policy))}, not a real-time one: a busy host "
         f"can make the control loop late past the node's watchdog and trip the mill for nothing; see {REALTIME_DOC}"
-    )
-
-
-def starvation_message(lateness_s: float, bound_s: float) -> str:
-    """The operator's sentence for a trip caused by a late control loop."""
-    return (
-        f"the control loop ran {lateness_s * 1e3:.0f} ms late; the node's watchdog allows {bound_s * 1e3:.0f} ms: "
-        f"the host is overloaded, see {REALTIME_DOC}"
     )
 
 
@@ -116,6 +104,11 @@ class HostWatch:
         if not tripped and self._tripped:
             self.starvation = None
         self._tripped = tripped
+
+    def sample(self) -> dict[str, float]:
+        """What a run record's sample carries of the host: the worst lateness since the last sample (ms)."""
+        return {"loop_lateness_ms": round(self.lateness.take_max() * 1e3, 2),
+                "watchdog_bound_ms": round(self.lateness.bound_s * 1e3, 1)}
 
     def summary(self) -> str:
         """The session's loop lateness in one sentence (recorded as the service stops)."""

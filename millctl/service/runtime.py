@@ -130,6 +130,7 @@ class ServiceRuntime:
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
         self.host = HostWatch(config, self.journal.add)
         """The control loop's lateness, its warnings and host-starvation trips; systemd's watchdog (SAFETY 27)."""
+        self.recipe.sample_extra = self.host.sample  # the run report plots the loop's lateness beside the speeds
         self.realtime_problem: str | None = None
         """Why the service has no real-time scheduling policy (None when it has one); set at start."""
         self._halt = threading.Event()

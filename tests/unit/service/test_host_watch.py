@@ -21,10 +21,10 @@ import pytest
 from millctl.api import EventKind
 from millctl.config import MillConfig, load_config
 from millctl.controller import ControllerState as S
+from millctl.looptime import LoopLateness
 from millctl.protocol import SimFaultCode
 from millctl.service import ServiceRuntime
 from millctl.service.host import HostWatch, realtime_policy_problem
-from millctl.service.looptime import LoopLateness
 from millctl.service.sdnotify import Notifier
 from tests.support.pace import stretched
 from tests.support.service import write_config

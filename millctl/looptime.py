@@ -21,6 +21,17 @@ WARN_FRACTION = 0.5
 """A tick late by this fraction of the node's watchdog bound is a warning (half the margin is gone)."""
 WINDOW_S = 10.0
 """The recent window of :attr:`LoopLateness.recent_max_s` (s)."""
+HOST_CAUSES = ("WATCHDOG", "stale")
+"""Trip causes a late loop brings about: the node heard no heartbeat in time, or the controller no telemetry."""
+REALTIME_DOC = "docs/deployment.md#real-time-priority"
+
+
+def starvation_message(lateness_s: float, bound_s: float) -> str:
+    """The operator's sentence for a trip caused by a late control loop."""
+    return (
+        f"the control loop ran {lateness_s * 1e3:.0f} ms late; the node's watchdog allows {bound_s * 1e3:.0f} ms: "
+        f"the host is overloaded, see {REALTIME_DOC}"
+    )
 
 
 @dataclass(frozen=True)
@@ -53,6 +64,7 @@ class LoopLateness:
         self._recent: deque[tuple[float, float]] = deque()
         """(start, lateness) of the ticks in the window whose lateness is a new maximum from there on."""
         self.last_late: LateTick | None = None
+        self._since_take_s = 0.0
 
     def record(self, at_s: float, lateness_s: float) -> LateTick | None:
         """Count one tick that started at ``at_s`` (s) ``lateness_s`` late; the LateTick when past the threshold."""
@@ -61,6 +73,7 @@ class LoopLateness:
         self.last_s = lateness_s
         self._total_s += lateness_s
         self.max_s = max(self.max_s, lateness_s)
+        self._since_take_s = max(self._since_take_s, lateness_s)
         recent = self._recent
         while recent and recent[-1][1] <= lateness_s:  # a monotonic deque: the window's maximum is at its head
             recent.pop()
@@ -72,6 +85,11 @@ class LoopLateness:
         self.late_ticks += 1
         self.last_late = LateTick(at_s, lateness_s)
         return self.last_late
+
+    def take_max(self) -> float:
+        """The largest lateness since the last call (s), for a run record's sample."""
+        worst_s, self._since_take_s = self._since_take_s, 0.0
+        return worst_s
 
     @property
     def mean_s(self) -> float:
@@ -102,4 +120,5 @@ class LoopLateness:
         }
 
 
-__all__ = ["WARN_FRACTION", "WINDOW_S", "LateTick", "LoopLateness"]
+__all__ = ["HOST_CAUSES", "REALTIME_DOC", "WARN_FRACTION", "WINDOW_S", "LateTick", "LoopLateness",
+           "starvation_message"]
