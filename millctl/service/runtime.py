@@ -304,7 +304,8 @@ class ServiceRuntime:
         found = [f"run {run.run_id} ({run.recipe}) is unfinished at step {min(run.step, run.steps)}/{run.steps}: "
                  f"{run.reason}; `millctl recipe resume {run.run_id}` continues it"
                  for run in self.recipe.unfinished()]
-        found += [problem for problem in (self.realtime_problem, self.host.starvation) if problem is not None]
+        if self.host.starvation is not None:  # a trip the host caused, until it is reset (SAFETY 27)
+            found.append(self.host.starvation)
         if self.records_warning is None:
             return [*self.bus_warnings, *found]
         return [*self.bus_warnings,
@@ -371,6 +372,8 @@ class ServiceRuntime:
                     self.controller.disarm(source="service")
             self._wait(lambda: self.controller.state is not S.ARMED, 1.0)
             with self.lock:
+                self.journal.add(EventKind.HOST, "service", self.host.summary(), session=True,
+                                 **self.host.lateness.as_dict())  # before "service stopped", the last event
                 measured = self.controller.measured
                 shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
                 self.journal.add(
@@ -380,8 +383,6 @@ class ServiceRuntime:
                     + ("" if stopped else f" (no standstill within {bound_s:.0f} s)"),
                     standstill=stopped,
                 )
-                self.journal.add(EventKind.HOST, "service", self.host.summary(), session=True,
-                                 **self.host.lateness.as_dict())
         self.close()
 
     def close(self) -> None:
