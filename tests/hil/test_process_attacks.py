@@ -11,7 +11,11 @@ as processes of their own on the transport under test (udp_multicast inside
   SIGCONT the service trips on the node's WATCHDOG fault and a reset clears it;
 - SIGSTOP of the node mid-recipe: the service trips on the stale telemetry and
   stops the recipe; after SIGCONT the node stops its drives and a reset clears
-  what it latched.
+  what it latched;
+- SIGSTOP of the service with a heartbeat forger taking over (every forged
+  heartbeat fresh): the node's watchdog stays fed, and the node stops the
+  drives because their setpoints expire (SAFETY 26), within
+  ``timing.setpoint_expiry_s``.
 """
 
 from __future__ import annotations
@@ -29,10 +33,12 @@ import pytest
 from millctl.errors import MillctlError
 from millctl.protocol import DriveTelemetry, FaultCode, NodeState, NodeStatus, Setpoints
 from tests.hil.adversary import Adversary
-from tests.hil.scenario_support import Mill, is_status, mill_on, wait_for
+from tests.hil.scenario_support import Mill, is_status, mill_on, report_timing, wait_for
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
+
+    Capture = pytest.CaptureFixture[str]
 
 pytestmark = pytest.mark.hil
 
@@ -141,3 +147,36 @@ def test_sigstop_of_the_node_mid_recipe_the_service_trips_and_the_node_stops_aft
     wait_for(lambda: drives_at_rest(mill), mill.timeout(60.0), "the node to bring the drives to rest")
     assert mill.outside_envelope(mill.probe.frames(t_stop)) == []
     reset_until_disabled(mill)
+
+
+def test_a_heartbeat_forger_cannot_keep_the_mill_running_once_the_service_is_stopped(
+    mill: Mill, capsys: Capture
+) -> None:
+    assert mill.probe is not None and mill.service is not None
+    timing = mill.config.timing
+    adversary = Adversary(mill.config.bus, mill.codec)
+    try:
+        mill.run_at(30.0, 150.0)
+        forger = adversary.keep_alive(silent_after_s=timing.heartbeat_period_s)
+        wait_for(lambda: forger.genuine_counter is not None, mill.timeout(5.0), "the forger to hear a heartbeat")
+        t_stop = mill.probe.now()
+        os.kill(mill.service.pid, signal.SIGSTOP)
+        try:
+            seen = mill.probe.wait_first(is_status(NodeState.STOPPING), t_stop, mill.timeout(10.0),
+                                         "the node to stop on its expired setpoints")
+            wait_for(lambda: drives_at_rest(mill), mill.timeout(30.0), "the drives to rest")
+            assert forger.sent > 0
+            statuses = [s.of(NodeStatus) for s in mill.probe.frames(t_stop, is_status())]
+            assert all(s.state is not NodeState.FAULT for s in statuses), "the forged heartbeats fed the watchdog"
+            assert statuses[-1].state is NodeState.ARMED
+            forger.stop()
+        finally:
+            os.kill(mill.service.pid, signal.SIGCONT)
+        measured_s = seen.t - t_stop
+        bound_s = mill.bounds.scaled(timing.setpoint_expiry_s + timing.setpoint_period_s)
+        report_timing(capsys, "setpoints_expire_under_a_heartbeat_forger", mill.transport.name, measured_s, bound_s)
+        assert measured_s <= bound_s
+        mill.wait_state("TRIPPED", 20.0)  # it never commanded the stop (or heard no node while stopped)
+        reset_until_disabled(mill)
+    finally:
+        adversary.close()
