@@ -20,6 +20,13 @@ can: a recorded heartbeat echoes a challenge that has since been superseded
 or has expired, so a recorded sequence replayed after the controller died
 feeds nothing, and the watchdog stops the mill (docs/protocol.md, "Heartbeat
 freshness").
+
+A faulted link's cause is gone once no guarded frame has been in error for
+:meth:`LinkMonitor.quiet_s` (SAFETY 25): the time its genuine sender takes to
+send ``e2e_error_limit`` frames, which would have paid the score back had the
+sender been sending. The scores themselves heal only on good frames, and in
+FAULT the controller sends no Setpoints: waiting for the score alone left a
+short bad-CRC burst latched until the node was restarted (issue 37 item 1).
 """
 
 from __future__ import annotations
@@ -108,6 +115,9 @@ class LinkMonitor:
         self._issued = 0
         self._accepted = -1
         """Serial number of the challenge the last fresh heartbeat echoed (-1 before the first)."""
+        self._quiet_s = {kind: interlock.e2e_error_limit * SENDER_PERIOD[kind](config) for kind in GUARDED}
+        self._last_error_s: dict[type[MillMessage], float] = {}
+        """When each guarded message last arrived in error (s, node clock)."""
 
     def issue_challenge(self, now_s: float) -> int:
         """The next challenge for the NodeStatus about to be sent; live for ``challenge_lifetime_s``."""
@@ -136,6 +146,8 @@ class LinkMonitor:
         """Classify one decoded controller frame; a fresh heartbeat feeds the watchdog."""
         receiver = self.receivers[decoded.kind]
         status = receiver.check(decoded, now_s)
+        if status.is_error:
+            self._last_error_s[decoded.kind] = now_s
         if not status.fresh:
             log.debug(
                 "%s frame %s (counter %s, E2E score %d, sequence score %d)",
@@ -162,6 +174,21 @@ class LinkMonitor:
     def faulted(self) -> bool:
         """True while any guarded message's net E2E error score is at or above the limit."""
         return any(receiver.faulted for receiver in self.receivers.values())
+
+    def quiet_s(self, kind: type[MillMessage]) -> float:
+        """How long ``kind`` must arrive without an error for its faulted score's cause to count as gone (s)."""
+        return self._quiet_s[kind]
+
+    def errors_present(self, now_s: float) -> bool:
+        """True while a guarded message's score is at its limit and it arrived in error within its quiet time.
+
+        What RESET asks of a faulted link (SAFETY 25): a score healed by good
+        frames, or no errors for :meth:`quiet_s`, is a cause gone.
+        """
+        return any(
+            receiver.faulted and now_s - self._last_error_s.get(kind, float("-inf")) < self._quiet_s[kind]
+            for kind, receiver in self.receivers.items()
+        )
 
     def reset_scores(self) -> None:
         """Clear the error scores (after an accepted RESET); counters resynchronise on the next frame."""

@@ -99,10 +99,12 @@ class Node:
         self._refused = 0
         self._last_refusal = RefusalCode.NONE
         self._last_setpoint: Setpoints | None = None
-        self._heater_refreshed_s = 0.0
+        self._refreshed_s = 0.0
         self._last_tick_s: float | None = None
         self._measured = (0.0, 0.0)
         self.frames_sent = 0
+        self.setpoints_expired = 0
+        """Controlled stops because the drive setpoints were not refreshed (SAFETY 26)."""
         self.tx_errors = 0
         self.tick_count = 0
         self._tick_total_s = 0.0
@@ -295,7 +297,7 @@ class Node:
         bits, present = self._fault_bits, NO_FAULTS
         if FaultFlag.WATCHDOG in bits and not self.link.heartbeat_live(now):
             present |= FaultFlag.WATCHDOG
-        if FaultFlag.E2E_LINK in bits and self.link.faulted:
+        if FaultFlag.E2E_LINK in bits and self.link.errors_present(now):
             present |= FaultFlag.E2E_LINK
         if FaultFlag.OVERTEMP in bits and self.furnace.temp_c >= self.config.furnace.over_temp_c:
             present |= FaultFlag.OVERTEMP
@@ -329,7 +331,7 @@ class Node:
             return
         self.motion.accept(message, now)
         self.furnace.command(message.heater_on, message.furnace_c)
-        self._heater_refreshed_s = now
+        self._refreshed_s = now
         self._last_setpoint = message
         if (message.rotary_rpm > 0.0 or message.vibration_rpm > 0.0) and self._state is NodeState.ARMED:
             self._set_state(NodeState.RUNNING, "nonzero setpoint")
@@ -399,16 +401,34 @@ class Node:
             faults |= FaultFlag.WATCHDOG
         if self.link.faulted:
             faults |= FaultFlag.E2E_LINK
-        if self.furnace.heater_on and now - self._heater_refreshed_s > self.config.furnace.setpoint_refresh_s:
+        if self.furnace.heater_on and now - self._refreshed_s > self.config.furnace.setpoint_refresh_s:
             faults |= FaultFlag.HEATER_TIMEOUT
         if faults:
             self._latch(faults, f"checks: {faults!r}", now)
+        self._expire_setpoints(now)
         if self.motion.stop is not None and self.motion.stop_done(now) and self._at_rest():
             self.motion.reset(now)
             if self._state is NodeState.STOPPING:
                 self._set_state(NodeState.ARMED, "controlled stop complete")
         if self._state is NodeState.RUNNING and self.motion.zero and self._standstill():
             self._set_state(NodeState.ARMED, "zero setpoints at standstill")
+
+    def _expire_setpoints(self, now: float) -> None:
+        """A running node whose drive setpoints were not refreshed within the expiry stops (SAFETY 26).
+
+        A heartbeat alone does not keep the drives turning: a forger that keeps
+        the watchdog fed (replayed or echoed heartbeats) while the controller is
+        gone gets a controlled stop within ``timing.setpoint_expiry_s``.
+        """
+        expiry_s = self.config.timing.setpoint_expiry_s
+        if self._state is NodeState.RUNNING and now - self._refreshed_s > expiry_s:
+            reason = (
+                f"drive setpoints expired: none accepted for {now - self._refreshed_s:.2f} s, bound {expiry_s:.2f} s "
+                "(timing.setpoint_expiry_periods, min_setpoint_expiry_s; docs/safety.md#setpoint-expiry)"
+            )
+            log.warning("%s: controlled stop", reason)
+            self.setpoints_expired += 1
+            self.begin_stop(now, reason)
 
     # -- transmit -------------------------------------------------------------------------------------
 

@@ -10,6 +10,10 @@ refusals, trips, the end). The report draws, against time since the start:
 * the margin to the limit (rpm);
 * the furnace temperature against its setpoint and the recipe's band;
 * the specific energy dose accumulated (kJ per g of powder);
+* the control loop's lateness (ms, the worst per sample) under the node's
+  watchdog bound and its warning line: a trip of WATCHDOG or stale telemetry
+  right after a late loop is named host starvation, with the figures, in the
+  summary and on the figure (SAFETY 27);
 
 with every event marked (trips and refusals red, pauses and holds orange,
 step starts grey). ``millctl report RUN`` writes ``speeds.png``,
@@ -27,9 +31,10 @@ from pathlib import Path
 from typing import Any
 
 from millctl.errors import InvalidInputError
+from millctl.looptime import HOST_CAUSES, WARN_FRACTION, starvation_message
 from millctl.records import read_records
 
-FIGURES = ("speeds", "margin", "furnace", "dose")
+FIGURES = ("speeds", "host", "margin", "furnace", "dose")
 """The figure set, one PNG each, in the order of the page."""
 MARKED = {"trip": "tab:red", "refusal": "tab:red", "fail": "tab:red", "abort": "tab:red", "pause": "tab:orange",
           "hold": "tab:orange", "resume": "tab:green", "step_start": "0.6"}
@@ -114,6 +119,19 @@ def draw(run: RunRecord, name: str, ax: Any) -> None:
         twin = ax.twinx()
         twin.plot(*run.series("measured_vibration_rpm"), color="tab:purple", lw=1, alpha=0.5)
         twin.set_ylabel("vibration speed ω_v (rpm, purple)", color="tab:purple")
+    elif name == "host":
+        t, lateness = run.series("loop_lateness_ms")
+        bound_ms = next((float(s["watchdog_bound_ms"]) for s in run.samples if s.get("watchdog_bound_ms")), None)
+        ax.plot(t, lateness, color="tab:gray", lw=1.2, label="control loop lateness (worst per sample)")
+        if bound_ms is not None:
+            ax.axhline(bound_ms, color="tab:red", lw=1, label=f"the node's watchdog bound ({bound_ms:.0f} ms)")
+            ax.axhline(WARN_FRACTION * bound_ms, color="tab:orange", lw=1, ls="--", label="warning")
+        else:
+            ax.text(0.5, 0.5, "no loop lateness in this record (a service before SAFETY 27)", transform=ax.transAxes,
+                    ha="center", va="center", color="0.4")
+        for t_s, named in host_starvation(run):
+            ax.annotate(named, (t_s, 0.0), xytext=(4, 24), textcoords="offset points", fontsize=7, color="tab:red")
+        ax.set(ylabel="loop lateness (ms)")
     elif name == "margin":
         ax.plot(*run.series("margin_rpm"), color="tab:green", lw=1.5, label="margin to the limit (limit − ω_r)")
         ax.axhline(0.0, color="tab:red", lw=1, label="the limit")
@@ -135,6 +153,27 @@ def draw(run: RunRecord, name: str, ax: Any) -> None:
     _mark_events(ax, run)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
+
+
+def host_starvation(run: RunRecord) -> list[tuple[float, str]]:
+    """Trips whose cause was a late control loop: (time, the named cause with its figures), from the samples.
+
+    A WATCHDOG or stale-telemetry trip with a sample of lateness at the warning line or past it in the
+    trip's sample or the one before it.
+    """
+    named = []
+    for event in run.events:
+        cause = str(event.get("cause", ""))
+        if event.get("event") != "trip" or not any(word in cause for word in HOST_CAUSES):
+            continue
+        before = [s for s in run.samples if s["t_s"] <= event["t_s"] + 1e-9][-2:]
+        late = [(float(s["loop_lateness_ms"]), float(s["watchdog_bound_ms"])) for s in before
+                if s.get("loop_lateness_ms") is not None and s.get("watchdog_bound_ms")]
+        worst = max(late, default=None)
+        if worst is not None and worst[0] >= WARN_FRACTION * worst[1]:
+            message = starvation_message(worst[0] / 1e3, worst[1] / 1e3)
+            named.append((float(event["t_s"]), f"host starvation: {message}"))
+    return named
 
 
 def _title(run: RunRecord) -> str:
@@ -165,7 +204,7 @@ def write_report(run: RunRecord, out_dir: Path) -> list[Path]:
         plt.close(fig)
         images[name] = path.read_bytes()
         written.append(path)
-    fig, axes = plt.subplots(len(FIGURES), 1, figsize=(10, 11), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(len(FIGURES), 1, figsize=(10, 13), sharex=True, layout="constrained")
     for name, ax in zip(FIGURES, axes, strict=True):
         draw(run, name, ax)
     axes[-1].set(xlabel="time since the start (s)")
@@ -215,6 +254,8 @@ def summary(run: RunRecord) -> dict[str, Any]:
         "dose_kj_g": run.samples[-1].get("dose_j_g", 0.0) / 1e3,
         "trips": sum(1 for e in run.events if e.get("event") == "trip"),
         "refusals": sum(1 for e in run.events if e.get("event") == "refusal"),
+        "max_loop_lateness_ms": max(finite("loop_lateness_ms"), default=None),
+        "host_starvation": "; ".join(named for _, named in host_starvation(run)) or None,
     }
 
 

@@ -92,6 +92,8 @@ class EventKind(enum.StrEnum):
     """The CAN controller's condition changed: error-warning, error-passive, bus-off, back to error-active."""
     DRILL = "drill"
     """An instructor injected or cleared a simulated node fault (``millctl serve --fault-injection``)."""
+    HOST = "host"
+    """The host: the control loop ran late, no real-time policy, or a trip the host caused (SAFETY 27)."""
 
 
 class SimFaultName(enum.StrEnum):

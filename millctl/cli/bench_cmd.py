@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from millctl.cli.priority import NO_NICE_FLAG, add_priority_option, lower_priority
 from millctl.errors import InvalidInputError
 
 _ROOT = Path(__file__).resolve().parents[2]
@@ -31,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         from bench.options import add_options
 
         add_options(parser)
+    add_priority_option(parser)
     parser.set_defaults(handler=_run)
 
 
@@ -39,5 +41,7 @@ def _run(args: argparse.Namespace) -> int:
         raise InvalidInputError("millctl bench needs a source checkout: the bench/ package is not installed")
     from bench.cli import run_parsed
 
+    lower_priority(args.no_nice, "the benchmarks")
     argv = sys.argv[sys.argv.index("bench") + 1 :] if "bench" in sys.argv else []
+    argv = [arg for arg in argv if arg != NO_NICE_FLAG]
     return run_parsed(args, argv)

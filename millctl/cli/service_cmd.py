@@ -63,6 +63,8 @@ def _serve(args: argparse.Namespace) -> int:
     from millctl.client import describe_mill
     from millctl.config import load_config
     from millctl.service import serve
+    from millctl.service.host import realtime_policy_problem
+    from millctl.service.sdnotify import Notifier
 
     loaded = load_config(args.config)
     if args.sim:
@@ -71,6 +73,10 @@ def _serve(args: argparse.Namespace) -> int:
     service = loaded.config.service
 
     def ready(path: Path, described: ServiceOut) -> None:
+        problem = realtime_policy_problem()
+        if problem is not None:
+            console.print(f"millctl serve: warning: {problem}", markup=False, highlight=False)
+        Notifier().ready(f"serving {path}")  # systemd's Type=notify: started (no-op outside systemd)
         tcp = f", TCP 127.0.0.1:{service.tcp_port} (token)" if service.tcp_port else ""
         drill = "; FAULT INJECTION on (operator drills)" if described.fault_injection else ""
         console.print(

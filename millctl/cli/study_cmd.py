@@ -10,6 +10,7 @@ from typing import Any
 
 from millctl.cli.args import positive_int
 from millctl.cli.output import print_json, stderr_console, stdout_console
+from millctl.cli.priority import add_priority_option, lower_priority
 from millctl.config import load_config
 from millctl.errors import ExitCode, InvalidInputError
 
@@ -37,6 +38,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     target.add_argument("--dose-kj-g", type=float, help="the recipe mills until this dose (kJ per g of powder)")
     target.add_argument("--hold-h", type=float, default=None, help="the recipe mills this long (h; default 1)")
     parser.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
+    add_priority_option(parser)
     parser.set_defaults(handler=_run)
 
 
@@ -49,6 +51,7 @@ def _results_path(args: argparse.Namespace) -> Path:
 def _run(args: argparse.Namespace) -> int:
     from millctl.studies import ResultsStore, StudyRunner, check_parameters, load_study, make_backend
 
+    lower_priority(args.no_nice, "the study")
     study = load_study(args.file)
     base_path = (Path(args.file).parent / study.study.config) if study.study.config else args.config
     loaded = load_config(base_path)

@@ -401,6 +401,14 @@ class Timing(_Strict):
     setpoint_period_s: Annotated[float, Field(gt=0.0, le=5.0)] = 0.1
     challenge_lifetime_s: Annotated[float, Field(gt=0.0, le=10.0)] = 0.5
     """How long a NodeStatus challenge may be echoed by a heartbeat (s): bounds what a replay can feed."""
+    setpoint_expiry_periods: Annotated[float, Field(ge=2.0, le=100.0)] = 10.0
+    min_setpoint_expiry_s: Annotated[float, Field(gt=0.0, le=60.0)] = 0.5
+    """A running node whose drive setpoints are not refreshed within :attr:`setpoint_expiry_s` stops (SAFETY 26)."""
+
+    @property
+    def setpoint_expiry_s(self) -> float:
+        """max(setpoint_expiry_periods × setpoint_period_s, min_setpoint_expiry_s) (s; docs/safety.md)."""
+        return max(self.setpoint_expiry_periods * self.setpoint_period_s, self.min_setpoint_expiry_s)
 
     @model_validator(mode="after")
     def _watchdog_after_heartbeat(self) -> Timing:

@@ -33,6 +33,8 @@ class RunSampler:
         """Specific energy dose since the run started (J per g of powder)."""
         self._last_s = start_s
         self._next_s = start_s
+        self.extra: Callable[[], dict[str, Any]] | None = None
+        """More fields for every sample (the service's loop lateness, SAFETY 27), or None."""
 
     def due(self, controller: Controller, now_s: float) -> dict[str, Any] | None:
         """Integrate the dose to ``now_s``; return a sample when one is due (else None)."""
@@ -41,7 +43,10 @@ class RunSampler:
         if now_s < self._next_s:
             return None
         self._next_s = max(self._next_s + self.period_s, now_s)  # never a burst to catch up after a stall
-        return sample(controller, now_s - self.start_s, self.dose_j_g)
+        row = sample(controller, now_s - self.start_s, self.dose_j_g)
+        if self.extra is not None:
+            row.update(self.extra())
+        return row
 
 
 def sample(controller: Controller, t_s: float, dose_j_g: float) -> dict[str, Any]:

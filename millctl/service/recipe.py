@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -95,6 +96,8 @@ class RecipeSlot:
         self.records_dir = records_dir
         self.config_sha256 = config_sha256
         self.records = records
+        self.sample_extra: Callable[[], dict[str, Any]] | None = None
+        """More fields for every run sample (the service sets its loop lateness here; SAFETY 27)."""
         self.runner: RecipeRunner | None = None
         self._scanned: dict[str, tuple[tuple[int, int], RunHistory | None]] = {}
         """Each run record's (mtime, size) and its history when unfinished: re-read only when it changed."""
@@ -161,6 +164,7 @@ class RecipeSlot:
             lock=lock,
             text=text,
         )
+        self.runner.sampler.extra = self.sample_extra
         return self.runner.progress()
 
     # ------------------------------------------------------------------ interrupted runs
@@ -228,6 +232,7 @@ class RecipeSlot:
             sample_s=self.controller.config.service.run_sample_s, lock=lock, resume=prepared.point,
             torn_bytes=torn_bytes,
         )
+        self.runner.sampler.extra = self.sample_extra
         return self.runner.progress()
 
     def check_out(self, check: ResumeCheck) -> ResumeCheckOut:

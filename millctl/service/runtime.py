@@ -44,6 +44,7 @@ from millctl.service.commands import (
     Snapshot,
 )
 from millctl.service.faults import embeds_node, require_simulated
+from millctl.service.host import HostWatch, realtime_policy_problem
 from millctl.service.journal import Journal, finite
 from millctl.service.lease import DEFAULT_TTL_S, LeaseManager
 from millctl.service.recipe import RecipeSlot
@@ -114,6 +115,11 @@ class ServiceRuntime:
             self._node_bus = open_bus(config.bus)
             self.node = simulated_mill(config, self._node_bus, self.clock, fault_injection=fault_injection)
         self.recipe = RecipeSlot(self.controller, self.clock, self.records_dir, loaded.sha256, records=self.records)
+        self.host = HostWatch(config, self.journal.add)
+        """The control loop's lateness, its warnings and host-starvation trips; systemd's watchdog (SAFETY 27)."""
+        self.recipe.sample_extra = self.host.sample  # the run report plots the loop's lateness beside the speeds
+        self.realtime_problem: str | None = None
+        """Why the service has no real-time scheduling policy (None when it has one); set at start."""
         self._halt = threading.Event()
         self._closed = False
         self._thread = threading.Thread(target=self._loop, name="millctl-control-loop", daemon=True)
@@ -139,6 +145,10 @@ class ServiceRuntime:
         )
         from millctl.protocol.bus_check import startup_link_problems
 
+        self.realtime_problem = realtime_policy_problem()
+        if self.realtime_problem is not None:
+            log.warning("%s", self.realtime_problem)
+            self.journal.add(EventKind.HOST, "service", self.realtime_problem, realtime=False)
         self.bus_warnings = startup_link_problems(self.config.bus)
         for problem in self.bus_warnings:
             self.journal.add(EventKind.BUS, "service", problem)
@@ -155,11 +165,13 @@ class ServiceRuntime:
 
     def _loop(self) -> None:
         period_s = self.config.timing.controller_tick_s
-        next_s = time.monotonic()
+        next_s = scheduled_s = time.monotonic()
         while not self._halt.is_set():
+            started_s = time.monotonic()
             try:
                 self.tick()
                 self._run_commands()
+                self.host.tick(started_s, started_s - scheduled_s, self.controller)  # lateness: started − scheduled
             except Exception as exc:  # the loop must say why it died; the node's watchdog does the rest
                 log.exception("control loop failed")
                 self.failed = f"control loop failed: {type(exc).__name__}: {exc}"
@@ -167,6 +179,7 @@ class ServiceRuntime:
                                  "the node's watchdog stops the mill")
                 return
             next_s += period_s
+            scheduled_s = next_s  # kept for the lateness when a stall resets the schedule below
             delay_s = next_s - time.monotonic()
             if delay_s < -10.0 * period_s:  # far behind (a stall): do not try to catch up in a burst
                 next_s = time.monotonic()
@@ -260,6 +273,8 @@ class ServiceRuntime:
         found = [f"run {run.run_id} ({run.recipe}) is unfinished at step {min(run.step, run.steps)}/{run.steps}: "
                  f"{run.reason}; `millctl recipe resume {run.run_id}` continues it"
                  for run in self.recipe.unfinished()]
+        if self.host.starvation is not None:  # a trip the host caused, until it is reset (SAFETY 27)
+            found.append(self.host.starvation)
         if self.records_warning is None:
             return [*self.bus_warnings, *found]
         return [*self.bus_warnings,
@@ -326,6 +341,8 @@ class ServiceRuntime:
                     self.controller.disarm(source="service")
             self._wait(lambda: self.controller.state is not S.ARMED, 1.0)
             with self.lock:
+                self.journal.add(EventKind.HOST, "service", self.host.summary(), session=True,
+                                 **self.host.lateness.as_dict())  # before "service stopped", the last event
                 measured = self.controller.measured
                 shown = "unknown" if measured is None else f"{measured.rotary_rpm:.1f}/{measured.vibration_rpm:.1f} rpm"
                 self.journal.add(

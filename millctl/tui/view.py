@@ -45,11 +45,12 @@ log = logging.getLogger(__name__)
 NOTIFY_KINDS: dict[EventKind, SeverityLevel] = {
     EventKind.TRIP: "error", EventKind.REFUSAL: "warning", EventKind.STATE: "information",
     EventKind.CONTROL: "information", EventKind.SERVICE: "information", EventKind.DRILL: "warning",
+    EventKind.HOST: "warning",
 }
 """Event kinds shown as notifications when they happen (the log shows every kind), with their severity."""
 EVENT_STYLE: dict[EventKind, str] = {
     EventKind.TRIP: "bold red", EventKind.REFUSAL: "yellow", EventKind.STATE: "cyan", EventKind.CONTROL: "magenta",
-    EventKind.DRILL: "bold magenta",
+    EventKind.DRILL: "bold magenta", EventKind.HOST: "bold yellow",
 }
 """How each kind of event is coloured in the log."""
 LEGIBLE = LegibleMonochrome()

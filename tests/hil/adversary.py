@@ -25,7 +25,18 @@ import msgpack
 from can.interfaces.udp_multicast.utils import pack_message
 
 from millctl.config.models import Bus
-from millctl.protocol import BusReader, Codec, Decoded, MillMessage, ProtocolError, Setpoints, open_bus
+from millctl.protocol import (
+    BusReader,
+    Codec,
+    ControllerState,
+    Decoded,
+    Heartbeat,
+    MillMessage,
+    NodeStatus,
+    ProtocolError,
+    Setpoints,
+    open_bus,
+)
 from tests.support.realtime import Role, start_thread
 
 CAN_BITRATE = 500_000
@@ -257,6 +268,34 @@ class Adversary:
                     sender.sent += 1
 
         return self._background("second-sender", body, realtime="node")  # a device on the bus, like the node
+
+    def keep_alive(self, silent_after_s: float) -> Background:
+        """A heartbeat forger that takes over once the controller falls silent (SAFETY 26's attacker).
+
+        While it hears the controller's heartbeats it only follows their alive counter. Once none has come for
+        ``silent_after_s``, it answers every NodeStatus with a Heartbeat echoing that status's challenge and the
+        counter the controller's next one would carry: each is fresh to the node, so the watchdog stays fed.
+        It sends no Setpoints.
+        """
+        self.skip_backlog()
+
+        def body(sender: Background) -> None:
+            counter: int | None = None
+            last_genuine_s = time.monotonic()
+            for decoded in self._heard(sender, (Heartbeat, NodeStatus)):
+                message = decoded.message
+                if isinstance(message, Heartbeat) and decoded.counter is not None:
+                    if counter is None or decoded.counter != (counter - 1) % 16:  # not our own echo
+                        counter, last_genuine_s = (decoded.counter + 1) % 16, time.monotonic()
+                        sender.genuine_counter = decoded.counter
+                elif (isinstance(message, NodeStatus) and counter is not None
+                      and time.monotonic() - last_genuine_s >= silent_after_s):
+                    t = self.send(self.forged(Heartbeat(ControllerState.RUNNING, message.challenge), counter))
+                    counter = (counter + 1) % 16
+                    sender.first_sent_t = sender.first_sent_t or t
+                    sender.sent += 1
+
+        return self._background("keep-alive", body, realtime="node")
 
     def skip_backlog(self) -> int:
         """Read and drop every frame queued on the adversary's socket (heard before now); return how many.

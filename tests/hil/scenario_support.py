@@ -207,6 +207,7 @@ VM_SCALED_KEYS: dict[str, type[BaseModel]] = {
     "watchdog_timeout_s": Timing,
     "challenge_lifetime_s": Timing,
     "setpoint_period_s": Timing,
+    "min_setpoint_expiry_s": Timing,
     "min_stale_s": Interlock,
     "startup_grace_s": Interlock,
     "command_confirm_s": Interlock,

@@ -108,6 +108,7 @@ def test_node_silent_stops_transmitting_and_its_watchdog_stops_the_mill(fi_bench
 
 def test_node_babble_floods_the_bus_at_the_requested_rate(fi_bench: Bench) -> None:
     bench = fi_bench
+    bench.hold = bench.node.last_setpoint  # the controller goes on refreshing: the node stays RUNNING (SAFETY 26)
     bench.inject(SimFaultCode.NODE_BABBLE, 2000.0)
     bench.step(bench.tick_s)
     bench.frame_ids.clear()
@@ -123,6 +124,7 @@ def test_node_babble_floods_the_bus_at_the_requested_rate(fi_bench: Bench) -> No
 
 def test_tx_loss_drops_the_given_share_of_frames(fi_bench: Bench) -> None:
     bench = fi_bench
+    bench.hold = bench.node.last_setpoint  # the controller goes on refreshing: the node stays RUNNING (SAFETY 26)
     bench.inject(SimFaultCode.TX_LOSS, 0.5)
     bench.step(bench.tick_s)
     bench.received.clear()

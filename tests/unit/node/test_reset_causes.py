@@ -215,10 +215,11 @@ def test_a_drive_whose_sensor_reads_rest_is_not_at_rest_while_its_model_still_tu
         bench.step(bench.tick_s)
         bench.inject(SimFaultCode.SENSOR_STUCK)  # at standstill: both sensors read 0 from now on
         bench.arm()
-        bench.setpoints(*turning)
+        bench.hold = Setpoints(*turning, 25.0, False)  # refreshed as the controller does (SAFETY 26)
         bench.step(1.5)
         assert state(bench) is NodeState.RUNNING and node.fault_bits == 0, turning
         assert node.measured_speeds_rpm == (0.0, 0.0)
+        bench.hold = Setpoints(0.0, 0.0, 25.0, False)
         bench.setpoints(0.0, 0.0)
         bench.step(bench.tick_s)
         assert max(node.true_speeds_rpm) > tolerance_rpm, turning
@@ -233,3 +234,27 @@ def test_a_drive_whose_sensor_reads_rest_is_not_at_rest_while_its_model_still_tu
         bench.command(CommandCode.DISARM)
         bench.step(bench.tick_s)
         assert state(bench) is NodeState.DISABLED, turning
+
+
+def test_a_faulted_e2e_link_is_a_cause_gone_once_no_frame_has_been_in_error_for_its_quiet_time(
+    bench: Bench,
+) -> None:
+    """SAFETY 25 (issue 37 item 1): in FAULT nobody sends good Setpoints frames to heal the score; once none has
+    arrived in error for the quiet time (the genuine sender's time for e2e_error_limit frames), RESET is taken."""
+    node = bench.node
+    bench.arm()
+    for _ in range(bench.config.interlock.e2e_error_limit + 1):
+        bench.ctl_bus.send(corrupt_setpoints(bench))
+    bench.step(bench.tick_s)
+    assert state(bench) is NodeState.FAULT and node.link.faulted
+    quiet_s = node.link.quiet_s(Setpoints)
+    assert quiet_s == bench.config.interlock.e2e_error_limit * bench.config.timing.setpoint_period_s
+    bench.step(quiet_s - 0.1)
+    bench.command(CommandCode.RESET)
+    bench.step(bench.tick_s)
+    assert state(bench) is NodeState.FAULT and node.last_refusal is RefusalCode.FAULT_LATCHED
+    bench.step(0.1)
+    assert node.link.faulted  # the score has not healed: no good Setpoints frame came
+    bench.command(CommandCode.RESET)
+    bench.step(bench.tick_s)
+    assert state(bench) is NodeState.DISABLED and node.fault_bits == 0

@@ -62,6 +62,7 @@ def test_a_stop_the_node_never_confirms_escalates_to_an_estop(
 ) -> None:
     rig.start(60.0, 300.0)
     monkeypatch.setattr(rig.node, "_stop", lambda now: RefusalCode.NONE)  # the node ignores STOP
+    monkeypatch.setattr(rig.node, "_expire_setpoints", lambda now: None)  # and the setpoint expiry that stops it too
     rig.controller.stop()
     t_stop = rig.clock.now()
     rig.run(3.0, until=lambda: rig.controller.state is S.TRIPPED)
