@@ -78,11 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``millctl``; return its exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.debug else logging.WARNING,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-        stream=sys.stderr,
-    )
+    _configure_logging(args.debug)
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return int(ExitCode.INVALID_INPUT)
@@ -98,6 +94,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         return _fail(args, exc)
+
+
+def _configure_logging(debug: bool) -> None:
+    """Warnings as plain lines on stderr; with --debug everything, timestamped, python-can's own lines too.
+
+    python-can logs a warning when it imports a driver whose vendor library is missing ("Kvaser canlib is
+    unavailable."); a bus that then cannot open is reported once, saying what to install
+    (millctl.protocol.drivers), so without --debug python-can speaks only of errors.
+    """
+    if debug:
+        logging.basicConfig(level=logging.DEBUG, stream=sys.stderr,
+                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+        return
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="millctl: %(levelname)s: %(message)s")
+    logging.getLogger("can").setLevel(logging.ERROR)
 
 
 def _fail(args: argparse.Namespace, exc: BaseException) -> int:
