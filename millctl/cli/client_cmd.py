@@ -201,6 +201,11 @@ def render_status(
 def _watch(args: argparse.Namespace) -> int:
     from rich.live import Live
 
+    from millctl.cli.tui_cmd import NoJsonForm
+
+    if args.json:
+        raise NoJsonForm("watch")
+
     console = stderr_console()
     events: deque[EventOut] = deque(maxlen=6)
     with _client(args) as client:

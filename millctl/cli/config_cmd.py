@@ -48,9 +48,14 @@ def _print_tree(console: Console, data: dict[str, object], prefix: str) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     loaded = load_config(args.file)
+    warnings = config_warnings(loaded.config)
+    if args.json:
+        print_json(args, {"source": loaded.source, "name": loaded.config.name, "sha256": loaded.sha256,
+                          "warnings": warnings})
+        return int(ExitCode.OK)
     console = stdout_console()
     console.print(f"{loaded.source}: ok ({loaded.config.name})", markup=False)
-    for warning in config_warnings(loaded.config):
+    for warning in warnings:
         console.print(f"[yellow]warning:[/] {warning}")
     return int(ExitCode.OK)
 

@@ -76,6 +76,9 @@ def _action(args: argparse.Namespace) -> int:
             progress = client.recipe_resume()
         else:
             progress = client.recipe_abort()
+    if getattr(args, "json", False):
+        print_json(args, progress)
+        return int(ExitCode.OK)
     stdout_console().print(_line(progress.progress), markup=False)
     return int(ExitCode.OK)
 
@@ -161,6 +164,9 @@ def _run(args: argparse.Namespace) -> int:
             f"run {started.run_id}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
             f"{plan.total_s:.0f} s planned) — Ctrl+C pauses, twice aborts"
         )
+        if args.detach and args.json:
+            print_json(args, {"run_id": started.run_id, "progress": started})
+            return int(ExitCode.OK)
         if args.detach:
             stdout_console().print(
                 f"run {started.run_id} started; follow with `millctl recipe status`", markup=False

@@ -81,6 +81,14 @@ def _serve(args: argparse.Namespace) -> int:
 
     code = serve(loaded, args.socket, on_ready=ready, fault_injection=args.fault_injection)
     console.print(f"millctl serve: stopped (exit {code})", markup=False)
+    if args.json:  # one document, when the service has stopped: how it ended
+        from millctl.cli.failures import EXIT_NAMES
+        from millctl.cli.output import print_json
+        from millctl.errors import ExitCode
+
+        error = None if code == ExitCode.OK else {"code": EXIT_NAMES.get(ExitCode(code), "error"), "exit_code": code,
+                                                  "message": f"millctl serve stopped with exit {code}"}
+        print_json(args, {"exit_code": code, "config": loaded.source}, error)
     return code
 
 
