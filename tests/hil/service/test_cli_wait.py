@@ -1,0 +1,65 @@
+"""``--wait`` on arm/set/stop/disarm, and reset answering with the state after it, against the real service.
+
+The real ``millctl serve`` with its embedded simulated node (issue 39, item 7):
+each command with ``--wait`` returns once its goal is reached and reports that
+state; a goal not reached in time exits 2; ``reset`` answers with the state the
+cleared trip leads to, not TRIPPED.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pytest
+
+from millctl.api import ControllerState
+from millctl.cli import main
+from millctl.errors import ExitCode
+from tests.support.service import Service, wait_for
+
+
+def _cli(service: Service, capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any]]:
+    capsys.readouterr()
+    code = main(["--config", str(service.config), *argv, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_each_command_waits_for_its_goal_and_reports_the_state_reached(
+    service: Service, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, document = _cli(service, capsys, "arm", "--wait")
+    assert (code, document["result"]["state"]) == (ExitCode.OK, "ARMED")
+    code, document = _cli(service, capsys, "set", "--rot-rpm", "60", "--vib-rpm", "400", "--wait")
+    assert (code, document["result"]["state"]) == (ExitCode.OK, "RUNNING"), document
+    with service.client() as client:
+        status = client.status()
+    assert status.measured_rotary_rpm == pytest.approx(60.0, abs=3.0)
+    assert status.measured_vibration_rpm == pytest.approx(400.0, abs=3.0)
+    code, document = _cli(service, capsys, "stop", "--wait")
+    assert code == ExitCode.OK and document["result"]["state"] in ("ARMED", "DISABLED"), document
+    with service.client() as client:
+        status = client.status()
+    assert abs(status.measured_rotary_rpm or 0.0) <= 3.0 and abs(status.measured_vibration_rpm or 0.0) <= 3.0
+    code, document = _cli(service, capsys, "disarm", "--wait")
+    assert (code, document["result"]["state"]) == (ExitCode.OK, "DISABLED")
+
+
+def test_a_goal_not_reached_in_time_exits_2_naming_it(service: Service, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _cli(service, capsys, "arm", "--wait")[0] == ExitCode.OK
+    code, document = _cli(service, capsys, "set", "--rot-rpm", "120", "--vib-rpm", "800", "--wait", "0")
+    assert code == ExitCode.INTERLOCK and document["ok"] is False
+    assert "both drives at their targets not reached within 0 s" in document["error"]["message"]
+    assert _cli(service, capsys, "stop", "--wait")[0] == ExitCode.OK
+    assert _cli(service, capsys, "disarm", "--wait")[0] == ExitCode.OK
+
+
+def test_reset_answers_with_the_state_after_it(service: Service, capsys: pytest.CaptureFixture[str]) -> None:
+    code, document = _cli(service, capsys, "estop")
+    assert (code, document["result"]["state"]) == (ExitCode.OK, "TRIPPED")
+    with service.client() as client:
+        wait_for(lambda: client.status().node_state == "FAULT", what="the node to report its E-stop fault")
+    code, document = _cli(service, capsys, "reset")
+    assert code == ExitCode.OK, document
+    assert document["result"]["state"] == ControllerState.DISABLED
+    capsys.readouterr()
