@@ -101,13 +101,15 @@ class _EmbeddedService:
     """A ``millctl serve`` process started for this run, in its own session (Ctrl+C reaches only us)."""
 
     def __init__(self, args: argparse.Namespace, socket_path: str, *, sim: bool) -> None:
+        from millctl.config.paths import ensure_private_dir
+
         command = [sys.executable, "-m", "millctl"]
         if args.config:
             command += ["--config", args.config]
         command += ["serve", "--socket", socket_path] + (["--sim"] if sim else [])
         self.socket_path = socket_path
         log_dir = Path(socket_path).parent
-        log_dir.mkdir(parents=True, exist_ok=True)
+        ensure_private_dir(log_dir)  # 0750 as the service makes it, not the umask's 0755 (issue 39, item 6)
         self.log_path = log_dir / "embedded-service.log"
         self._log = open(self.log_path, "ab")  # noqa: SIM115 - closed in stop()
         self.proc = subprocess.Popen(

@@ -23,9 +23,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description=(
             "Run the controller on the configured bus (with the embedded simulated node on the 'virtual' bus), "
             "serve the local API on a Unix socket (service.socket_path, mode service.socket_mode; by default "
-            "$XDG_RUNTIME_DIR/millctl/millctl.sock, or /run/millctl under systemd), and record every event to "
-            "<records_dir>/events.jsonl and every frame to <records_dir>/bus/ (by default "
-            "$XDG_STATE_HOME/millctl/records, or /var/lib/millctl/records under systemd). SIGTERM or Ctrl+C "
+            "$XDG_RUNTIME_DIR/millctl/[INSTANCE/]millctl.sock, or /run/millctl under systemd), and record every "
+            "event to <records_dir>/events.jsonl and every frame to <records_dir>/bus/ (by default "
+            "$XDG_STATE_HOME/millctl/[INSTANCE/]records, or /var/lib/millctl/records under systemd; INSTANCE: one "
+            "per config file, docs/deployment.md). SIGTERM or Ctrl+C "
             "stops the mill in a controlled way and exits 0. A second serve on the same socket exits 3. "
             "See docs/deployment.md."
         ),

@@ -12,6 +12,7 @@ from millctl.cli import main
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.config.models import MillConfig
+from millctl.config.paths import service_paths
 from millctl.errors import ExitCode
 
 
@@ -45,7 +46,8 @@ def test_each_value_says_where_it_came_from(tmp_path: Path, capsys: pytest.Captu
     assert "tcp_port = 8765  # file" in lines
     assert "keep_files = 10  # default" in lines
     socket = next(line for line in lines if line.startswith("socket_path = "))
-    assert socket.endswith(f"by convention: {tmp_path / 'run' / 'millctl' / 'millctl.sock'} (convention)")
+    assert socket.endswith(f"by convention: {service_paths(load_config(config)).socket} (convention)")
+    assert socket.split("by convention: ")[1].startswith(str(tmp_path / "run" / "millctl"))
     monkeypatch.setenv("MILLCTL_CONFIG", str(config))
     assert "chosen by $MILLCTL_CONFIG (environment)" in _shown(capsys).splitlines()[0]
     assert main(["config", "show", "--json"]) == ExitCode.OK
