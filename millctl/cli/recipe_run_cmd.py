@@ -231,7 +231,9 @@ def follow(client: Client) -> RecipeProgress:
     acted = 0
     last_renew = time.monotonic()
     clock = _StopClock()
-    with _Interrupts() as interrupts, Live(console=stderr_console(), refresh_per_second=4) as live:
+    console = stderr_console()
+    display = Live(console=console, refresh_per_second=4) if console.is_terminal else _PlainLines(console)
+    with _Interrupts() as interrupts, display as live:
         while True:
             if interrupts.count > acted:
                 acted = interrupts.count
@@ -247,13 +249,50 @@ def follow(client: Client) -> RecipeProgress:
             progress = client.recipe().progress
             if progress is None:
                 raise BusError("the service has no recipe run: was it restarted?")
-            live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
+            if isinstance(live, _PlainLines):
+                live.show(progress, client.status(), clock.remaining_s(progress))
+            else:
+                live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
             if progress.state.final or progress.state is RunState.INTERRUPTED:
                 return progress
             if time.monotonic() - last_renew > LEASE_RENEW_S:
                 client.take_control()
                 last_renew = time.monotonic()
             time.sleep(POLL_S)
+
+
+PLAIN_EVERY_S = 2.0
+"""With stderr not a terminal (a pipe, a log file): a plain progress line this often (s), and at every change."""
+
+
+class _PlainLines:
+    """Progress as plain lines, for a stderr that is no terminal (a live display would show nothing there)."""
+
+    def __init__(self, console: Any) -> None:
+        self.console = console
+        self._last: tuple[object, ...] | None = None
+        self._said = 0.0
+
+    def __enter__(self) -> _PlainLines:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def show(self, progress: RecipeProgress, status: StatusOut, remaining_s: float | None) -> None:
+        """Print a line when the step or state changed, or :data:`PLAIN_EVERY_S` after the last one."""
+        now = time.monotonic()
+        key = (progress.state, progress.step, progress.kind, progress.reason)
+        if key == self._last and now - self._said < PLAIN_EVERY_S:
+            return
+        self._last, self._said = key, now
+        self.console.print(
+            f"{progress.recipe}: {progress.state} {_step(progress)}, elapsed {hms(progress.elapsed_s or 0.0)}, "
+            f"remaining {_hms(remaining_s)}; ω_r {_num(status.measured_rotary_rpm)} rpm, ω_v "
+            f"{_num(status.measured_vibration_rpm)} rpm, furnace {_num(status.furnace_temp_c)} °C"
+            + (f" — {progress.reason}" if progress.reason else ""),
+            markup=False, highlight=False,
+        )
 
 
 class _StopClock:

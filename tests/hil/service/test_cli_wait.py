@@ -3,7 +3,8 @@
 The real ``millctl serve`` with its embedded simulated node (issue 39, item 7):
 each command with ``--wait`` returns once its goal is reached and reports that
 state; a goal not reached in time exits 2; ``reset`` answers with the state the
-cleared trip leads to, not TRIPPED.
+cleared trip leads to, not TRIPPED. A recipe run whose stderr is a pipe prints
+plain progress lines (item 5).
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import pytest
 from millctl.api import ControllerState
 from millctl.cli import main
 from millctl.errors import ExitCode
-from tests.support.service import Service, wait_for
+from tests.support.service import DEMO_RECIPE as DEMO
+from tests.support.service import Service, run_millctl, wait_for
 
 
 def _cli(service: Service, capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict[str, Any]]:
@@ -63,3 +65,13 @@ def test_reset_answers_with_the_state_after_it(service: Service, capsys: pytest.
     assert code == ExitCode.OK, document
     assert document["result"]["state"] == ControllerState.DISABLED
     capsys.readouterr()
+
+
+def test_a_piped_recipe_run_prints_plain_progress_lines(service: Service) -> None:
+    # stderr is a pipe here, as under `… 2>run.log` or a CI job: no live display, plain lines instead
+    done = run_millctl(service.config, "recipe", "run", str(DEMO), timeout_s=300.0)
+    assert done.returncode == ExitCode.OK, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("demo: ")]
+    assert "\x1b[" not in done.stderr  # no terminal codes in a log
+    assert len({line.split(",")[0] for line in lines}) >= 3, done.stderr  # every step says it began
+    assert any("RUNNING step 1/" in line for line in lines) and "ω_r" in lines[-1]
