@@ -12,6 +12,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -74,9 +75,11 @@ def test_one_plain_line_on_stderr_not_python_cans_warnings(tmp_path: Path) -> No
 
 def test_serve_without_the_driver_exits_3_which_the_unit_does_not_restart(tmp_path: Path) -> None:
     config = _config(tmp_path, "kvaser")
-    env = {**os.environ, "XDG_STATE_HOME": str(tmp_path / "state"), "XDG_RUNTIME_DIR": str(tmp_path)}
-    done = subprocess.run([sys.executable, "-m", "millctl", "--config", str(config), "serve"], env=env,
-                          capture_output=True, text=True, timeout=120, check=False)
+    with tempfile.TemporaryDirectory(prefix="mc-") as run:  # short: a Unix socket's path has at most 107 bytes
+        os.chmod(run, 0o700)
+        env = {**os.environ, "XDG_STATE_HOME": str(tmp_path / "state"), "XDG_RUNTIME_DIR": run}
+        done = subprocess.run([sys.executable, "-m", "millctl", "--config", str(config), "serve"], env=env,
+                              capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == ExitCode.BUS, done.stderr
     assert "interface kvaser needs Kvaser's CANlib" in done.stderr
     unit = (Path(__file__).resolve().parents[3] / "config" / "systemd" / "millctl.service").read_text()
