@@ -12,6 +12,8 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from textual.geometry import Region
+from textual.widget import Widget
 from textual.widgets import Checkbox, Footer, Input, Static
 
 from millctl.tui import MillApp
@@ -115,3 +117,33 @@ def test_set_dialog_snapshot(snap_compare: Any, utc: None, size: tuple[int, int]
         await pilot.pause()
 
     assert snap_compare(app, terminal_size=size, run_before=run)
+
+
+def _screen_text(app: MillApp) -> str:
+    lines = []
+    for widget in app.screen.walk_children(Widget):
+        if widget.display and widget.region:
+            for strip in widget.render_lines(Region(0, 0, widget.region.width, widget.region.height)):
+                lines.append("".join(segment.text for segment in strip))
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize("no_color", [False, True], ids=["colour", "no-color"])
+@pytest.mark.parametrize("size", SIZES, ids=["80x24", "120x40"])
+async def test_no_legend_names_a_colour_under_no_color(size: tuple[int, int], no_color: bool,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    if no_color:
+        monkeypatch.setenv("NO_COLOR", "1")
+    else:
+        monkeypatch.delenv("NO_COLOR", raising=False)
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=size) as pilot:
+        await feeder(app)(pilot)
+        await pilot.pause()
+        main = _screen_text(app)
+        await pilot.press("e")
+        await pilot.pause()
+        envelope = _screen_text(app)
+    for text in (main, envelope):
+        named = "green" in text or "yellow" in text
+        assert named is not no_color, text
