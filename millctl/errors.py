@@ -7,6 +7,7 @@ where to read more; each class maps to one :class:`ExitCode`.
 from __future__ import annotations
 
 import enum
+import re
 
 
 class ExitCode(enum.IntEnum):
@@ -57,10 +58,25 @@ class ConfigError(InvalidFileError):
     what = "configuration"
 
 
+_STEP_LOCATION = re.compile(r"\bsteps\.(\d+)(?:\.(?:ramp|hold|wait_furnace|pause))?(\.)?")
+"""A validation error's location in the steps list (``steps.2.ramp.rotary_rpm``: 0-based, with the union's tag)."""
+
+
+def _step_one_based(match: re.Match[str]) -> str:
+    return f"step {int(match.group(1)) + 1}" + (" " if match.group(2) else "")
+
+
 class RecipeError(InvalidFileError):
-    """A recipe file is missing, unreadable, fails validation, or leaves the envelope."""
+    """A recipe file is missing, unreadable, fails validation, or leaves the envelope.
+
+    Steps are numbered from 1 in every message, as the pre-flight and the runner number them: pydantic's
+    ``steps.2.ramp.rotary_rpm`` reads ``step 3 rotary_rpm``.
+    """
 
     what = "recipe"
+
+    def __init__(self, source: str, problems: list[str]) -> None:
+        super().__init__(source, [_STEP_LOCATION.sub(_step_one_based, p) for p in problems])
 
 
 class PhysicsInputError(InvalidInputError):

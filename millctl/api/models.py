@@ -55,7 +55,7 @@ class LinkOut(Strict):
 
     age_s: float | None = Field(description="time since the last valid frame (s); null before the first")
     stale_after_s: float = Field(description="age past which it counts as stale (s)")
-    stale: bool
+    stale: bool = Field(description="true when the last valid frame is older than stale_after_s")
     frames: int = Field(description="valid frames received")
     e2e: dict[str, int] = Field(description="E2E verdict counts (ok, repeated, wrong-crc …)")
     e2e_score: int = Field(description="the E2E receiver's net error score")
@@ -108,7 +108,7 @@ class StatusOut(Strict):
     """A snapshot of the controller (as :class:`millctl.controller.Status`; non-finite floats as null)."""
 
     time_s: float | None = Field(description="controller clock (s)")
-    state: ControllerState
+    state: ControllerState = Field(description="the controller's state (docs/safety.md#state-machine)")
     trip_cause: str = Field(description="why the controller tripped (empty unless TRIPPED)")
     node_state: str | None = Field(description="the node's own state, null before the node is seen")
     node_faults: list[str] = Field(description="fault flags the node reports")
@@ -128,7 +128,7 @@ class StatusOut(Strict):
     furnace_setpoint_c: float | None = Field(description="furnace setpoint now, on its heating ramp (°C)")
     furnace_temp_c: float | None = Field(description="measured furnace temperature (°C)")
     heater_pct: float | None = Field(description="heater power (%)")
-    heater_on: bool | None
+    heater_on: bool | None = Field(description="heater switch as the node reports it; null before telemetry")
     law: str = Field(description="the envelope's limit law (docs/safety.md)")
     margin: float | None = Field(description="safety margin applied to the law (fraction)")
     limit_rotary_rpm: float | None = Field(description="enforced rotary limit at the vibration setpoint (rpm)")
@@ -180,7 +180,7 @@ class EnvelopeOut(Strict):
     furnace_min_c: float = Field(description="lowest furnace target (°C)")
     furnace_max_c: float = Field(description="highest furnace target (°C)")
     max_heating_rate_c_per_min: float = Field(description="fastest heating ramp (°C/min)")
-    points: list[EnvelopePoint]
+    points: list[EnvelopePoint] = Field(description="the limit curve: one point per vibration speed of the grid")
     regime: RegimeOut | None = Field(default=None, description="where the law is not the every-cycle bound; "
                                      "null where it is over the whole drive range")
 
@@ -197,11 +197,11 @@ class CheckRequest(Strict):
 class CheckOut(Strict):
     """The envelope's verdict on one point."""
 
-    ok: bool
+    ok: bool = Field(description="true when the interlock allows the point (no refusals)")
     reason: str = Field(description="the verdict in words")
     limit_rotary_rpm: float | None = Field(description="enforced rotary limit at this ω_v (rpm)")
     margin_rpm: float | None = Field(description="limit minus ω_r (rpm)")
-    refusals: list[Refusal]
+    refusals: list[Refusal] = Field(description="every reason it is refused: quantity, value, limit")
 
 
 # ---------------------------------------------------------------- control lease
@@ -214,7 +214,7 @@ class TakeRequest(Strict):
 class LeaseOut(Strict):
     """The control lease: send ``lease_id`` in the ``X-Millctl-Lease`` header of every command."""
 
-    lease_id: str
+    lease_id: str = Field(description="the lease token: send it as X-Millctl-Lease with every command")
     holder: str = Field(description="who holds it, as api:<client name>")
     expires_in_s: float = Field(description="time until it expires unless renewed (s)")
     ttl_s: float = Field(description="lease time to live (s)")
@@ -223,10 +223,10 @@ class LeaseOut(Strict):
 class ControlOut(Strict):
     """Who holds control now (no lease id: only its holder knows it)."""
 
-    held: bool
-    holder: str | None
+    held: bool = Field(description="true while a client holds the control lease")
+    holder: str | None = Field(description="the client name of the lease's holder; null when nobody holds it")
     expires_in_s: float | None = Field(description="time until the lease expires (s)")
-    expired: bool
+    expired: bool = Field(description="true when the holder stopped renewing: `force` may take it over")
 
 
 # ---------------------------------------------------------------- commands
@@ -273,7 +273,7 @@ class FurnaceRequest(Strict):
 class CommandOut(Strict):
     """A command was accepted: what was done and the state right after."""
 
-    accepted: Literal[True] = True
+    accepted: Literal[True] = Field(default=True, description="always true (a refusal is an error answer)")
     message: str = Field(description="the command as done")
     state: ControllerState = Field(description="the controller's state after the command took effect")
     duration_s: float | None = Field(default=None, description="planned ramp duration (setpoints)")
@@ -286,16 +286,16 @@ class EventOut(Strict):
     seq: int = Field(description="sequence number (the stream's event id)")
     t: float = Field(description="Unix time (s)")
     time_s: float | None = Field(description="controller clock (s)")
-    kind: EventKind
+    kind: EventKind = Field(description="what kind of event (state, command, refusal, trip, control, service …)")
     source: str = Field(description="who caused it: operator, recipe, interlock, node, service, api:<client>")
-    message: str
-    data: dict[str, Any]
+    message: str = Field(description="what happened, in words")
+    data: dict[str, Any] = Field(description="the event's details (keys carry units: rotary_rpm)")
 
 
 class EventsOut(Strict):
     """Events after a sequence number, oldest first (a ring buffer: old ones drop out)."""
 
-    events: list[EventOut]
+    events: list[EventOut] = Field(description="the recorded events after the requested sequence number, oldest first")
     last_seq: int = Field(description="sequence number of the newest event")
 
 
@@ -304,18 +304,18 @@ class ServiceOut(Strict):
 
     mill_name: str = Field(description="the config's name of the mill")
     simulated: bool = Field(description="true when the node is the embedded simulation, not a real mill")
-    pid: int
-    version: str
+    pid: int = Field(description="the service's process id")
+    version: str = Field(description="millctl's version")
     started_unix: float = Field(description="Unix time the service started (s)")
-    config_path: str
-    config_sha256: str
-    law: str
-    margin: float
-    bus_interface: str
-    bus_channel: str
+    config_path: str = Field(description="the configuration file the service loaded")
+    config_sha256: str = Field(description="SHA-256 of that file's bytes")
+    law: str = Field(description="the envelope law enforced (e.g. paper-eq9)")
+    margin: float = Field(description="the safety margin kept below the law's limit (fraction, 0.1 = 10 %)")
+    bus_interface: str = Field(description="the python-can interface of the CAN bus")
+    bus_channel: str = Field(description="the CAN bus channel")
     embedded_node: bool = Field(description="the simulated node runs inside the service")
     socket_path: str = Field(description="the Unix socket the API is served on")
-    records_dir: str
+    records_dir: str = Field(description="the folder of the records (events.jsonl, bus/, runs/)")
     bus_log: str = Field(description="this session's bus log file")
     fault_injection: bool = Field(default=False, description="an instructor may inject the simulated node's faults "
                                   "(serve --fault-injection; only on a simulated mill): /v1/sim/faults exists")
@@ -378,10 +378,10 @@ class RecipePauseRequest(Strict):
 class RecipeProgress(Strict):
     """Where a recipe run is."""
 
-    run_id: str
+    run_id: str = Field(description="the run's id (its record is runs/<run_id>.jsonl in the records folder)")
     recipe: str = Field(description="the recipe's name")
-    recipe_file: str
-    state: RunState
+    recipe_file: str = Field(description="the recipe file the run was started from")
+    state: RunState = Field(description="the run's state")
     reason: str | None = Field(description="why it ended, paused or held")
     step: int = Field(description="the current step, from 1")
     steps: int = Field(description="number of steps")
@@ -408,19 +408,19 @@ class RunGapOut(Strict):
 class UnfinishedRunOut(Strict):
     """A run its record shows unfinished (no end) and no service runs: it can be resumed or closed."""
 
-    run_id: str
+    run_id: str = Field(description="the interrupted run's id")
     recipe: str = Field(description="the recipe's name")
-    recipe_file: str
+    recipe_file: str = Field(description="the recipe file the run was started from")
     recipe_sha256: str = Field(description="hash of the recipe text the run started with; a resume needs the same")
     config_sha256: str = Field(description="hash of the configuration the run started under")
     state: RunState = Field(description="INTERRUPTED")
     step: int = Field(description="the step it was in, from 1 (steps + 1: only the final stop was left)")
-    steps: int
+    steps: int = Field(description="the recipe's number of steps")
     kind: str | None = Field(description="kind of that step; null when it had not started")
     step_elapsed_s: float = Field(description="time of that step done at its setpoints (s); a hold resumes with it")
     step_dose_kj_g: float = Field(description="dose of that step so far (kJ/g); a dose hold resumes with it")
     elapsed_s: float = Field(description="time the run was under way, gaps excluded (s)")
-    started_unix: float
+    started_unix: float = Field(description="Unix time the run started (s)")
     interrupted_unix: float = Field(description="the last record before the gap (s)")
     reason: str = Field(description="why it stopped: the service's stop, or a crash, kill or power loss")
     gaps: list[RunGapOut] = Field(description="the run's gaps so far, the open one last")
@@ -431,7 +431,7 @@ class UnfinishedRunOut(Strict):
 class UnfinishedRunsOut(Strict):
     """Every interrupted run in the service's records, oldest first."""
 
-    runs: list[UnfinishedRunOut]
+    runs: list[UnfinishedRunOut] = Field(description="every run a stop, crash or reboot interrupted, oldest first")
 
 
 class RecipeResumeRequest(Strict):
@@ -450,24 +450,24 @@ class ResumeCheckOut(Strict):
     problems: list[str] = Field(description="what stops it, each with the value and what to do")
     restore: str = Field(description="what happens first, in words: from the measured values to the setpoints")
     restore_s: float = Field(description="expected time of the restore ramps (s)")
-    controller_state: ControllerState
-    measured_rotary_rpm: float | None
-    measured_vibration_rpm: float | None
-    furnace_temp_c: float | None
+    controller_state: ControllerState = Field(description="the controller's state now")
+    measured_rotary_rpm: float | None = Field(description="measured ω_r now (rpm); null before telemetry")
+    measured_vibration_rpm: float | None = Field(description="measured ω_v now (rpm); null before telemetry")
+    furnace_temp_c: float | None = Field(description="furnace temperature now (°C); null before telemetry")
 
 
 class RecipeOut(Strict):
     """The current (or last) recipe run; ``active`` false when none runs, ``progress`` null before the first."""
 
-    active: bool
-    progress: RecipeProgress | None
+    active: bool = Field(description="true while a recipe run is in progress (running, paused or stopping)")
+    progress: RecipeProgress | None = Field(description="the current or last run's progress; null before any run")
 
 
 class RecipeResumeOut(Strict):
     """The run, the check and, once confirmed and started, its progress."""
 
-    run: UnfinishedRunOut
-    check: ResumeCheckOut
+    run: UnfinishedRunOut = Field(description="the interrupted run that is resumed")
+    check: ResumeCheckOut = Field(description="the mill's state now, which the resume was checked against")
     started: bool = Field(description="true once the run continues")
     recipe: RecipeOut | None = Field(description="the run's progress once started")
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import logging
 import os
 import sys
@@ -50,10 +51,26 @@ configuration: --config FILE > $MILLCTL_CONFIG > ./config/mill.toml > packaged d
 
 
 class _Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose usage errors exit with ExitCode.INVALID_INPUT."""
+    """An ArgumentParser whose usage errors exit with ExitCode.INVALID_INPUT (as a JSON document with --json)."""
+
+    json_requested = False
+    """Set by :func:`main` when ``--json`` is among the arguments: an argument error is a JSON document too."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.print_usage(sys.stderr)
+        if _Parser.json_requested:
+            from millctl.cli.failures import EXIT_NAMES
+            from millctl.cli.output import json_document
+
+            command = self.prog.removeprefix("millctl").strip()
+            error = {"code": EXIT_NAMES[ExitCode.INVALID_INPUT], "message": f"{self.prog}: {message}",
+                     "exit_code": int(ExitCode.INVALID_INPUT), "usage": self.format_usage().strip()}
+            try:
+                sys.stdout.write(json.dumps(json_document(command, error=error), indent=2, ensure_ascii=False))
+                sys.stdout.write("\n")
+                sys.stdout.flush()
+            except BrokenPipeError:
+                self.exit(_stdout_gone())
         self.exit(int(ExitCode.INVALID_INPUT), f"{self.prog}: error: {message}\n")
 
 
@@ -71,23 +88,41 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
+    for command in _leaves(parser):
+        if not any("--json" in action.option_strings for action in command._actions):
+            command.add_argument("--json", action="store_true", help=JSON_HELP)
     return parser
+
+
+JSON_HELP = "one JSON document on stdout, whatever the outcome (see millctl --help)"
+
+
+def _leaves(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+    """Every parser of a command that runs (one without subcommands)."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        return [parser]
+    return [leaf for action in subs for sub in dict.fromkeys(action.choices.values()) for leaf in _leaves(sub)]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``millctl``; return its exit code."""
+    from millctl.cli.output import json_mode
+
     parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.debug else logging.WARNING,
-        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
-        stream=sys.stderr,
-    )
+    words = list(sys.argv[1:] if argv is None else argv)
+    _Parser.json_requested = "--json" in words[: words.index("--") if "--" in words else len(words)]
+    args = parser.parse_args(words)
+    _configure_logging(args.debug)
     if not getattr(args, "handler", None):
         parser.print_help(sys.stderr)
         return int(ExitCode.INVALID_INPUT)
     try:
-        return int(args.handler(args))
+        with json_mode(bool(getattr(args, "json", False))):
+            code = int(args.handler(args))
+        code = _outcome(args, code)
+        sys.stdout.flush()  # here, where a reader that left is a BrokenPipeError (141), not at exit (120)
+        return code
     except BrokenPipeError:
         return _stdout_gone()
     except (MillctlError, KeyboardInterrupt) as exc:
@@ -98,6 +133,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         return _fail(args, exc)
+
+
+def _configure_logging(debug: bool) -> None:
+    """Warnings as plain lines on stderr; with --debug everything, timestamped, python-can's own lines too.
+
+    python-can logs a warning when it imports a driver whose vendor library is missing ("Kvaser canlib is
+    unavailable."); a bus that then cannot open is reported once, saying what to install
+    (millctl.protocol.drivers), so without --debug python-can speaks only of errors.
+    """
+    if debug:
+        logging.basicConfig(level=logging.DEBUG, stream=sys.stderr,
+                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+        return
+    logging.basicConfig(level=logging.WARNING, stream=sys.stderr, format="millctl: %(levelname)s: %(message)s")
+    logging.getLogger("can").setLevel(logging.ERROR)
+
+
+def _outcome(args: argparse.Namespace, code: int) -> int:
+    """With --json, a command that printed no document of its own gets one: its exit code, in the envelope."""
+    from millctl.cli.failures import EXIT_NAMES
+    from millctl.cli.output import documents_printed, print_json, print_json_error
+
+    if getattr(args, "json", False) and documents_printed() == 0:
+        if code == ExitCode.OK:
+            print_json(args, {"exit_code": code})
+        else:
+            name = EXIT_NAMES.get(ExitCode(code), "error") if code in {int(c) for c in ExitCode} else "error"
+            print_json_error(args, {"code": name, "exit_code": code,
+                                    "message": f"exit {code} ({name}): the reason is on stderr"})
+    return code
 
 
 def _fail(args: argparse.Namespace, exc: BaseException) -> int:

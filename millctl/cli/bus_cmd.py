@@ -102,6 +102,9 @@ def _convert(args: argparse.Namespace) -> int:
     from millctl.protocol.buslog_convert import convert_log
 
     count = convert_log(Path(args.input), Path(args.output))
+    if args.json:
+        print_json(args, {"input": args.input, "output": args.output, "frames": count})
+        return int(ExitCode.OK)
     stdout_console().print(f"{args.input} → {args.output}: {count} frames", markup=False)
     return int(ExitCode.OK)
 
@@ -195,6 +198,9 @@ def _export_c(args: argparse.Namespace) -> int:
     from millctl.protocol.export_c import export_c
 
     paths = export_c(default_codec(), Path(args.directory), node=args.node, overwrite=args.force)
+    if args.json:
+        print_json(args, {"written": [str(p) for p in paths]})
+        return int(ExitCode.OK)
     console = stdout_console()
     for path in paths:
         console.print(f"wrote {path}", markup=False)

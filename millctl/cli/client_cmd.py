@@ -15,7 +15,7 @@ from collections import deque
 from typing import TYPE_CHECKING, Any
 
 from millctl.api import CommandOut, ControlOut, EventKind, EventOut, ServiceOut, StatusOut
-from millctl.cli.args import finite_float
+from millctl.cli.args import finite_float, nonnegative_float
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
 
@@ -41,6 +41,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     common.add_argument("--json", action="store_true", help="machine-readable output on stdout")
     take = argparse.ArgumentParser(add_help=False)
     take.add_argument("--force", action="store_true", help="take over control whose holder's lease has expired")
+    take.add_argument("--wait", type=nonnegative_float, nargs="?", const=-1.0, default=None, metavar="TIMEOUT_S",
+                      help="wait until the command's goal is reached (arm: ARMED, disarm: DISABLED, stop: standstill, "
+                      "set: both drives at their targets, reset: trip cleared); exit 2 if not within TIMEOUT_S "
+                      "(default: arm/disarm 10 s, stop 120 s, reset 15 s, set its ramp + 30 s)")
 
     status = subparsers.add_parser("status", parents=[common], help="the mill's status, from the running service",
                                    description="The controller's status and who holds control.")
@@ -110,6 +114,7 @@ def _set(args: argparse.Namespace) -> int:
                 rate_c_per_min=args.heat_rate,
             )
         )
+        results[-1] = _waited(args, client, "set", results[-1])
     _report(args, results)
     return int(ExitCode.OK)
 
@@ -122,8 +127,21 @@ def _simple(args: argparse.Namespace) -> int:
         else:
             with client.control(force=args.force):
                 result = getattr(client, args.action)()
+            result = _waited(args, client, args.action, result)
     _report(args, [result])
     return int(ExitCode.OK)
+
+
+def _waited(args: argparse.Namespace, client: Client, command: str, result: CommandOut) -> CommandOut:
+    """With --wait (and always for reset, which completes when the node confirms): the state once reached."""
+    from millctl.cli.wait import DEFAULT_TIMEOUT_S, wait_for_goal
+
+    if args.wait is None and command != "reset":
+        return result
+    timeout_s = DEFAULT_TIMEOUT_S[command] + (result.duration_s or 0.0) if args.wait in (None, -1.0) else args.wait
+    err = stderr_console()
+    status = wait_for_goal(client, command, timeout_s, lambda line: err.print(f"millctl: {line}", markup=False))
+    return result.model_copy(update={"state": status.state})
 
 
 def _report(args: argparse.Namespace, results: list[CommandOut]) -> None:
@@ -207,6 +225,11 @@ def render_status(
 
 def _watch(args: argparse.Namespace) -> int:
     from rich.live import Live
+
+    from millctl.cli.tui_cmd import NoJsonForm
+
+    if args.json:
+        raise NoJsonForm("watch")
 
     console = stderr_console()
     events: deque[EventOut] = deque(maxlen=6)

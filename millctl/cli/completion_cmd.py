@@ -26,7 +26,13 @@ def _run(args: argparse.Namespace) -> int:
 
     from millctl.cli import build_parser
 
-    print(shtab.complete(build_parser(), shell=args.shell), end="")
+    script = shtab.complete(build_parser(), shell=args.shell)
+    if args.json:
+        from millctl.cli.output import print_json
+
+        print_json(args, {"shell": args.shell, "script": script})
+        return int(ExitCode.OK)
+    print(script, end="")
     return int(ExitCode.OK)
 
 

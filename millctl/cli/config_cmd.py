@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from rich.console import Console
-
 from millctl.cli.output import print_json, stdout_console
 from millctl.config import MillConfig, load_config
+from millctl.config.loader import LoadedConfig
 from millctl.errors import ExitCode
 
 
@@ -24,33 +23,42 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _show(args: argparse.Namespace) -> int:
+    from millctl.cli.config_toml import chosen_by, origins, render
+
     loaded = load_config(args.config)
-    data = loaded.config.model_dump(mode="json")
+    conventions = _conventions(loaded)
     if args.json:
-        print_json(args, {"source": loaded.source, "sha256": loaded.sha256, "config": data})
+        print_json(args, {"source": loaded.source, "chosen_by": chosen_by(args.config), "sha256": loaded.sha256,
+                          "config": loaded.config.model_dump(mode="json"), "origin": origins(loaded),
+                          "conventions": conventions})
         return int(ExitCode.OK)
-    console = stdout_console()
-    console.print(f"# source: {loaded.source}  sha256: {loaded.sha256[:16]}")
-    console.print(f"# rod mass m = {loaded.config.rod_mass_kg:.5f} kg (derived)")
-    _print_tree(console, data, "")
+    stdout_console().print(render(loaded, args.config, conventions), markup=False, end="")
     return int(ExitCode.OK)
 
 
-def _print_tree(console: Console, data: dict[str, object], prefix: str) -> None:
-    for key, value in data.items():
-        if isinstance(value, dict) and value:
-            _print_tree(console, value, f"{prefix}{key}.")
-        elif key.endswith("_mode") and isinstance(value, int):  # permission bits, as chmod and TOML write them
-            console.print(f"{prefix}{key} = 0o{value:o}", markup=False)
-        else:
-            console.print(f"{prefix}{key} = {value!r}", markup=False)
+def _conventions(loaded: LoadedConfig) -> dict[str, str]:
+    """What an empty socket_path / records_dir becomes, and from which environment (docs/deployment.md)."""
+    from millctl.config.paths import service_paths
+
+    paths = service_paths(loaded)
+    found = {}
+    if not loaded.config.service.socket_path:
+        found["service.socket_path"] = f"by convention: {paths.socket} ({paths.socket_from})"
+    if not loaded.config.service.records_dir:
+        found["service.records_dir"] = f"by convention: {paths.records_dir}"
+    return found
 
 
 def _check(args: argparse.Namespace) -> int:
     loaded = load_config(args.file)
+    warnings = config_warnings(loaded.config)
+    if args.json:
+        print_json(args, {"source": loaded.source, "name": loaded.config.name, "sha256": loaded.sha256,
+                          "warnings": warnings})
+        return int(ExitCode.OK)
     console = stdout_console()
     console.print(f"{loaded.source}: ok ({loaded.config.name})", markup=False)
-    for warning in config_warnings(loaded.config):
+    for warning in warnings:
         console.print(f"[yellow]warning:[/] {warning}")
     return int(ExitCode.OK)
 

@@ -234,9 +234,10 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
 
         config = with_cam(config, CamShape(args.cam))
     envelope = Envelope.from_config(config, law=LimitLaw(table["law"]))
-    recipe, label = planned_from_recipe(args.recipe, config) if args.recipe else ((), "")
+    recipe, label, route = planned_from_recipe(args.recipe, config) if args.recipe else ((), "", ())
     measured, target = _live_points(args) if args.live else (None, None)
-    points = OperatingPoints(measured, target, recipe=recipe, recipe_label=label, at=planned_from_pairs(args.at or []))
+    points = OperatingPoints(measured, target, recipe=recipe, recipe_label=label, recipe_path=route,
+                             at=planned_from_pairs(args.at or []))
     fig = limits_figure(envelope, config.name, points)
     write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
     stderr_console().print(f"wrote {path}")

@@ -52,6 +52,8 @@ class OperatingPoints:
     recipe: tuple[SpeedPoint, ...] = ()
     """A recipe's step targets, in order (drawn as a path)."""
     recipe_label: str = "recipe"
+    recipe_path: tuple[SpeedPoint, ...] = ()
+    """The speeds the planner moves through, corner by corner (one axis after the other), the final stop included."""
     at: tuple[SpeedPoint, ...] = ()
     """Planned points given one by one (``--at``)."""
 
@@ -109,10 +111,13 @@ def _all(points: OperatingPoints) -> list[SpeedPoint]:
 
 
 def _mark_points(ax: Axes, envelope: Envelope, points: OperatingPoints) -> None:
+    if points.recipe_path:
+        ax.plot([pt.omega_v_rpm for pt in points.recipe_path], [pt.omega_r_rpm for pt in points.recipe_path],
+                color="tab:cyan", lw=1.2, label="planned path: the planner's ramps, one drive after the other, "
+                "and the final stop")
     if points.recipe:
         ax.plot([pt.omega_v_rpm for pt in points.recipe], [pt.omega_r_rpm for pt in points.recipe],
-                color="tab:cyan", lw=0.9, marker="D", ms=5, mfc="white", mec="tab:cyan",
-                label=f"planned: {points.recipe_label}")
+                ls="", marker="D", ms=5, mfc="white", mec="tab:cyan", label=f"planned: {points.recipe_label}")
     if points.at:
         ax.plot([pt.omega_v_rpm for pt in points.at], [pt.omega_r_rpm for pt in points.at], ls="", marker="s",
                 ms=6, mfc="white", mec="tab:blue", label=f"planned: {len(points.at)} point(s) given with --at")
@@ -156,15 +161,20 @@ def _phase_panel(ax: Axes, envelope: Envelope) -> None:
     ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=1, frameon=False)
 
 
-def planned_from_recipe(path: str, config: MillConfig) -> tuple[tuple[SpeedPoint, ...], str]:
-    """The target speeds of every step of a recipe's plan, in order, and what they are."""
+def planned_from_recipe(
+    path: str, config: MillConfig
+) -> tuple[tuple[SpeedPoint, ...], str, tuple[SpeedPoint, ...]]:
+    """The target speeds of every step of a recipe's plan, what they are, and the path the planner drives."""
     from millctl.recipes import load_recipe, plan_recipe
 
     loaded = load_recipe(path)
     plan = plan_recipe(loaded.recipe, config)
     name = loaded.recipe.recipe.name
     label = f"recipe {name}, the target of each of its {len(plan.steps)} steps"
-    return tuple(step.target for step in plan.steps), label
+    moves = [step.trajectory for step in plan.steps if step.trajectory is not None] + [plan.stop]
+    path_points = [corner for move in moves for corner in move.vertices()]
+    route = tuple(p for i, p in enumerate(path_points) if i == 0 or p != path_points[i - 1])
+    return tuple(step.target for step in plan.steps), label, route
 
 
 def planned_from_pairs(pairs: Sequence[Sequence[float]]) -> tuple[SpeedPoint, ...]:

@@ -12,13 +12,14 @@ follow one scheme: snake_case, ``<what>_<axis>_<unit>`` (``setpoint_rotary_rpm``
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from pydantic import BaseModel
 from rich.console import Console
@@ -27,15 +28,27 @@ PIPE_WIDTH = 160
 """Width of tables written to a pipe or file, where no terminal says how wide to be."""
 
 
+class _PipeConsole(Console):
+    """A rich console that lets a closed pipe be a :class:`BrokenPipeError`, which ``main`` ends as 141.
+
+    rich's own handling exits 1 (``Console.on_broken_pipe``), which would make ``millctl … | head`` look failed.
+    """
+
+    def on_broken_pipe(self) -> None:
+        """Hand the closed pipe to ``millctl.cli.main`` (exit 141, quietly)."""
+        self.quiet = True
+        raise BrokenPipeError
+
+
 def stdout_console() -> Console:
     """A console for data on stdout (rich honours NO_COLOR and detects TTYs)."""
     width = None if sys.stdout.isatty() else PIPE_WIDTH
-    return Console(file=sys.stdout, highlight=False, soft_wrap=True, width=width)
+    return _PipeConsole(file=sys.stdout, highlight=False, soft_wrap=True, width=width)
 
 
 def stderr_console() -> Console:
     """A console for progress and diagnostics on stderr."""
-    return Console(file=sys.stderr, highlight=False, soft_wrap=True)
+    return _PipeConsole(file=sys.stderr, highlight=False, soft_wrap=True)
 
 
 JSON_SCHEMA_VERSION = 1
@@ -55,9 +68,10 @@ def plain(data: Any) -> Any:
 
 def command_name(args: Any) -> str:
     """The command as typed: ``set``, ``recipe run``, ``bus load``."""
-    top = str(getattr(args, "command", None) or "")
-    sub = getattr(args, f"{top}_command", None)
-    return f"{top} {sub}" if sub else top
+    words = [str(getattr(args, "command", None) or "")]
+    while sub := getattr(args, f"{words[-1]}_command", None):  # bus → log → convert
+        words.append(str(sub))
+    return " ".join(words)
 
 
 def json_document(command: str, *, result: Any = None, error: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -73,10 +87,40 @@ def json_document(command: str, *, result: Any = None, error: dict[str, Any] | N
     return document
 
 
+class _Documents:
+    """Where ``--json`` documents go while a command runs, and how many it printed (``main`` adds one if none)."""
+
+    stream: TextIO | None = None
+    """The real stdout while a ``--json`` command runs (its other output goes to stderr); None: sys.stdout."""
+    printed = 0
+
+
+@contextlib.contextmanager
+def json_mode(enabled: bool) -> Iterator[None]:
+    """With ``--json``: stdout carries the one document only; whatever else the command says goes to stderr."""
+    _Documents.printed = 0
+    if not enabled:
+        yield
+        return
+    _Documents.stream = sys.stdout
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        _Documents.stream = None
+
+
+def documents_printed() -> int:
+    """How many JSON documents the running command has printed."""
+    return _Documents.printed
+
+
 def _dump(document: dict[str, Any]) -> None:
-    json.dump(document, sys.stdout, indent=2, ensure_ascii=False, default=str)
-    sys.stdout.write("\n")
-    sys.stdout.flush()
+    stream = _Documents.stream or sys.stdout
+    _Documents.printed += 1
+    json.dump(document, stream, indent=2, ensure_ascii=False, default=str)
+    stream.write("\n")
+    stream.flush()
 
 
 def print_json(args: Any, result: Any, error: dict[str, Any] | None = None) -> None:
@@ -124,8 +168,10 @@ __all__ = [
     "JSON_SCHEMA_VERSION",
     "command_name",
     "current_umask",
+    "documents_printed",
     "hms",
     "json_document",
+    "json_mode",
     "plain",
     "print_json",
     "print_json_error",

@@ -143,6 +143,9 @@ def _resume(args: argparse.Namespace) -> int:
         progress = started.recipe.progress if started.recipe else None
         err.print(f"run {args.run} resumed at step {progress.step if progress else '?'}; Ctrl+C pauses, twice aborts",
                   markup=False)
+        if args.detach and args.json:
+            print_json(args, {"run_id": args.run, "progress": progress})
+            return int(ExitCode.OK)
         if args.detach:
             stdout_console().print(f"run {args.run} resumed; follow with `millctl recipe status`", markup=False)
             return int(ExitCode.OK)
@@ -162,6 +165,9 @@ def _abort(args: argparse.Namespace) -> int:
     with _client(args) as client, client.control():
         say_mill(client)
         closed = client.recipe_close_run(args.run)
+    if args.json:
+        print_json(args, closed)
+        return int(ExitCode.OK)
     stdout_console().print(f"run {closed.run_id} closed: {RunState.ABORTED} (its record ends; it can no longer be "
                            "resumed)", markup=False)
     return int(ExitCode.OK)

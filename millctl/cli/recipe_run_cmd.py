@@ -76,6 +76,9 @@ def _action(args: argparse.Namespace) -> int:
             progress = client.recipe_resume()
         else:
             progress = client.recipe_abort()
+    if getattr(args, "json", False):
+        print_json(args, progress)
+        return int(ExitCode.OK)
     stdout_console().print(_line(progress.progress), markup=False)
     return int(ExitCode.OK)
 
@@ -98,13 +101,15 @@ class _EmbeddedService:
     """A ``millctl serve`` process started for this run, in its own session (Ctrl+C reaches only us)."""
 
     def __init__(self, args: argparse.Namespace, socket_path: str, *, sim: bool) -> None:
+        from millctl.config.paths import ensure_private_dir
+
         command = [sys.executable, "-m", "millctl"]
         if args.config:
             command += ["--config", args.config]
         command += ["serve", "--socket", socket_path] + (["--sim"] if sim else [])
         self.socket_path = socket_path
         log_dir = Path(socket_path).parent
-        log_dir.mkdir(parents=True, exist_ok=True)
+        ensure_private_dir(log_dir)  # 0750 as the service makes it, not the umask's 0755 (issue 39, item 6)
         self.log_path = log_dir / "embedded-service.log"
         self._log = open(self.log_path, "ab")  # noqa: SIM115 - closed in stop()
         self.proc = subprocess.Popen(
@@ -161,6 +166,9 @@ def _run(args: argparse.Namespace) -> int:
             f"run {started.run_id}: {loaded.recipe.recipe.name} ({len(plan.steps)} steps, "
             f"{plan.total_s:.0f} s planned) — Ctrl+C pauses, twice aborts"
         )
+        if args.detach and args.json:
+            print_json(args, {"run_id": started.run_id, "progress": started})
+            return int(ExitCode.OK)
         if args.detach:
             stdout_console().print(
                 f"run {started.run_id} started; follow with `millctl recipe status`", markup=False
@@ -223,7 +231,9 @@ def follow(client: Client) -> RecipeProgress:
     acted = 0
     last_renew = time.monotonic()
     clock = _StopClock()
-    with _Interrupts() as interrupts, Live(console=stderr_console(), refresh_per_second=4) as live:
+    console = stderr_console()
+    display = Live(console=console, refresh_per_second=4) if console.is_terminal else _PlainLines(console)
+    with _Interrupts() as interrupts, display as live:
         while True:
             if interrupts.count > acted:
                 acted = interrupts.count
@@ -239,13 +249,50 @@ def follow(client: Client) -> RecipeProgress:
             progress = client.recipe().progress
             if progress is None:
                 raise BusError("the service has no recipe run: was it restarted?")
-            live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
+            if isinstance(live, _PlainLines):
+                live.show(progress, client.status(), clock.remaining_s(progress))
+            else:
+                live.update(_panel(progress, client.status(), clock.remaining_s(progress)))
             if progress.state.final or progress.state is RunState.INTERRUPTED:
                 return progress
             if time.monotonic() - last_renew > LEASE_RENEW_S:
                 client.take_control()
                 last_renew = time.monotonic()
             time.sleep(POLL_S)
+
+
+PLAIN_EVERY_S = 2.0
+"""With stderr not a terminal (a pipe, a log file): a plain progress line this often (s), and at every change."""
+
+
+class _PlainLines:
+    """Progress as plain lines, for a stderr that is no terminal (a live display would show nothing there)."""
+
+    def __init__(self, console: Any) -> None:
+        self.console = console
+        self._last: tuple[object, ...] | None = None
+        self._said = 0.0
+
+    def __enter__(self) -> _PlainLines:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def show(self, progress: RecipeProgress, status: StatusOut, remaining_s: float | None) -> None:
+        """Print a line when the step or state changed, or :data:`PLAIN_EVERY_S` after the last one."""
+        now = time.monotonic()
+        key = (progress.state, progress.step, progress.kind, progress.reason)
+        if key == self._last and now - self._said < PLAIN_EVERY_S:
+            return
+        self._last, self._said = key, now
+        self.console.print(
+            f"{progress.recipe}: {progress.state} {_step(progress)}, elapsed {hms(progress.elapsed_s or 0.0)}, "
+            f"remaining {_hms(remaining_s)}; ω_r {_num(status.measured_rotary_rpm)} rpm, ω_v "
+            f"{_num(status.measured_vibration_rpm)} rpm, furnace {_num(status.furnace_temp_c)} °C"
+            + (f" — {progress.reason}" if progress.reason else ""),
+            markup=False, highlight=False,
+        )
 
 
 class _StopClock:

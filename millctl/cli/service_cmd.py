@@ -23,9 +23,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description=(
             "Run the controller on the configured bus (with the embedded simulated node on the 'virtual' bus), "
             "serve the local API on a Unix socket (service.socket_path, mode service.socket_mode; by default "
-            "$XDG_RUNTIME_DIR/millctl/millctl.sock, or /run/millctl under systemd), and record every event to "
-            "<records_dir>/events.jsonl and every frame to <records_dir>/bus/ (by default "
-            "$XDG_STATE_HOME/millctl/records, or /var/lib/millctl/records under systemd). SIGTERM or Ctrl+C "
+            "$XDG_RUNTIME_DIR/millctl/[INSTANCE/]millctl.sock, or /run/millctl under systemd), and record every "
+            "event to <records_dir>/events.jsonl and every frame to <records_dir>/bus/ (by default "
+            "$XDG_STATE_HOME/millctl/[INSTANCE/]records, or /var/lib/millctl/records under systemd; INSTANCE: one "
+            "per config file, docs/deployment.md). SIGTERM or Ctrl+C "
             "stops the mill in a controlled way and exits 0. A second serve on the same socket exits 3. "
             "See docs/deployment.md."
         ),
@@ -87,6 +88,14 @@ def _serve(args: argparse.Namespace) -> int:
 
     code = serve(loaded, args.socket, on_ready=ready, fault_injection=args.fault_injection)
     console.print(f"millctl serve: stopped (exit {code})", markup=False)
+    if args.json:  # one document, when the service has stopped: how it ended
+        from millctl.cli.failures import EXIT_NAMES
+        from millctl.cli.output import print_json
+        from millctl.errors import ExitCode
+
+        error = None if code == ExitCode.OK else {"code": EXIT_NAMES.get(ExitCode(code), "error"), "exit_code": code,
+                                                  "message": f"millctl serve stopped with exit {code}"}
+        print_json(args, {"exit_code": code, "config": loaded.source}, error)
     return code
 
 

@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "objective. Resumes from its results file.",
     )
     parser.add_argument("file", help="the study (TOML)")
-    parser.add_argument("--out", type=Path, help="results file (.parquet, or .csv; default ./STUDY.parquet)")
+    parser.add_argument("--out", type=Path,
+                        help="results file (.parquet or .csv; default: in ~/.local/state/millctl/studies)")
     parser.add_argument("--csv", action="store_true", help="write CSV instead of Parquet")
     parser.add_argument("--fresh", action="store_true", help="discard an existing results file instead of resuming")
     parser.add_argument("--workers", type=positive_int, help="local worker processes (default: every local core)")
@@ -43,9 +44,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _results_path(args: argparse.Namespace) -> Path:
+    """``--out``, else the study's file in the user's state folder (never the working folder: issue 39, 8)."""
     if args.out is not None:
         return Path(args.out)
-    return Path(Path(args.file).stem + (".csv" if args.csv else ".parquet"))
+    from millctl.config.paths import state_dir
+
+    path = state_dir() / "studies" / (Path(args.file).stem + (".csv" if args.csv else ".parquet"))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def _run(args: argparse.Namespace) -> int:

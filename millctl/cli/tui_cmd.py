@@ -6,7 +6,7 @@ import argparse
 import signal
 
 from millctl.cli.output import stderr_console
-from millctl.errors import ExitCode
+from millctl.errors import ExitCode, InvalidInputError
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -30,9 +30,21 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.set_defaults(handler=_tui)
 
 
+class NoJsonForm(InvalidInputError):
+    """``--json`` on an interactive command: refused (exit 1) as one JSON document, naming what gives the data."""
+
+    def __init__(self, command: str) -> None:
+        super().__init__(
+            f"millctl {command} is interactive and has no JSON form: the mill's state as JSON is `millctl status "
+            "--json`, its events the service's stream GET /v1/events (docs/operations.md#the-event-stream)"
+        )
+
+
 def _tui(args: argparse.Namespace) -> int:
     from millctl.tui import MillApp, SimService
 
+    if args.json:
+        raise NoJsonForm("tui")
     if not args.sim:
         if args.fault_injection:
             console = stderr_console()
@@ -57,4 +69,4 @@ def _tui(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
-__all__ = ["register"]
+__all__ = ["NoJsonForm", "register"]

@@ -20,6 +20,7 @@ import can
 
 from millctl.config.bus import DOCS, FD_DATA_BITRATE_KWARG, NUMBERED_CHANNEL, Bus, python_can_page
 from millctl.errors import BusError
+from millctl.protocol.drivers import install_hint
 from millctl.protocol.messages import ESTOP_ID
 
 log = logging.getLogger(__name__)
@@ -61,23 +62,29 @@ def bus_kwargs(bus_config: Bus) -> dict[str, Any]:
 
 
 def open_bus(bus_config: Bus) -> can.BusABC:
-    """Open the configured CAN bus; any failure is a :class:`~millctl.errors.BusError` naming the bus."""
+    """Open the configured CAN bus; any failure is a :class:`~millctl.errors.BusError` naming the bus.
+
+    Any exception of the driver counts (python-can's kvaser raises ``NameError`` when CANlib is missing):
+    the error says what the interface needs installed (:func:`~millctl.protocol.drivers.install_hint`).
+    """
     kwargs = bus_kwargs(bus_config)
     try:
         bus = can.Bus(**kwargs)
-    except (can.CanError, OSError, ValueError, TypeError, ImportError) as exc:
-        driver = ""
-        if isinstance(exc, (can.CanInterfaceNotImplementedError, ImportError)):
-            driver = (
-                f"; the driver of {bus_config.interface} is missing: install the vendor library, and for slcan or "
-                "gs_usb the extra millctl[adapters] (pyserial, pyusb)"
-            )
-        raise BusError(
-            f"cannot open the CAN bus (interface {bus_config.interface}, channel {bus_config.channel!r}, "
-            f"options {bus_config.options}): {exc}{driver} ({DOCS}; {python_can_page(bus_config.interface)})"
-        ) from exc
+    except Exception as exc:  # a vendor driver may raise anything: each is "cannot open"
+        raise BusError(_cannot_open(bus_config, exc)) from exc
     log.info("opened CAN bus %s", bus.channel_info)
     return bus
+
+
+def _cannot_open(bus_config: Bus, exc: Exception) -> str:
+    hint = install_hint(bus_config.interface)
+    needs = f"; {hint}" if hint else ""
+    options = f", options {bus_config.options}" if bus_config.options else ""
+    return (
+        f"cannot open the CAN bus (interface {bus_config.interface}, channel {bus_config.channel!r}{options}): "
+        f"{type(exc).__name__ + ': ' if isinstance(exc, NameError | AttributeError) else ''}{exc}{needs} "
+        f"({DOCS}; {python_can_page(bus_config.interface)})"
+    )
 
 
 KERNEL_FILTERED = frozenset({"socketcan"})

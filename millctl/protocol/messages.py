@@ -67,6 +67,10 @@ class FaultFlag(enum.IntFlag):
     DRIVE = 1 << 10
     INTERNAL = 1 << 11
 
+    def __repr__(self) -> str:
+        """The set bits by name, as an operator reads them in a trip cause: ``WATCHDOG|ESTOP`` (``none``)."""
+        return "|".join(str(flag.name) for flag in type(self) if flag & self) or "none"
+
 
 NO_FAULTS = FaultFlag(0)
 """The empty fault set."""

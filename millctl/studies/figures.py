@@ -35,6 +35,37 @@ _LAW_STYLES = {
 }
 
 
+_UNITS = (
+    ("_j_g_s", "J g⁻¹ s⁻¹"), ("_kj_g", "kJ/g"), ("_j_g", "J/g"), ("_m_s2", "m/s²"), ("_n_per_m", "N/m"),
+    ("_rpm_s", "rpm/s"), ("_rpm", "rpm"), ("_hz", "Hz"), ("_kw", "kW"), ("_w", "W"), ("_mj", "mJ"), ("_j", "J"),
+    ("_kpa", "kPa"), ("_mpa", "MPa"), ("_gpa", "GPa"), ("_kn", "kN"), ("_n", "N"), ("_mm", "mm"), ("_m", "m"),
+    ("_deg", "°"), ("_h", "h"), ("_s", "s"), ("_c", "°C"), ("_kg", "kg"), ("_g", "g"),
+)
+"""A metric identifier's unit suffix and the unit it names (longest first: ``_j_g_s`` before ``_s``)."""
+_NAMES = {"rotary_rpm": "ω_r, vial speed (rpm)", "vibration_rpm": "ω_v, cam speed (rpm)"}
+_WORDS = {"p10": "10th percentile", "p90": "90th percentile", "sim": "simulated", "rpm": "rpm"}
+
+
+def metric_label(name: str) -> str:
+    """A metric identifier as an axis label: ``impact_energy_p90_j`` → ``impact energy, 90th percentile (J)``.
+
+    A leading ``-`` (a metric maximised in ``--pareto``) is not part of the quantity plotted.
+    """
+    name = name.lstrip("-")
+    if name in _NAMES:
+        return _NAMES[name]
+    unit = ""
+    for suffix, text in _UNITS:
+        if name.endswith(suffix) and len(name) > len(suffix):
+            name, unit = name[: -len(suffix)], text
+            break
+    words = name.split("_")
+    qualifiers = [_WORDS[w] for w in words if w in ("p10", "p90")]
+    words = [_WORDS.get(w, w) for w in words if w not in ("p10", "p90")]
+    text = " ".join(words) + (", " + ", ".join(qualifiers) if qualifiers else "")
+    return f"{text} ({unit})" if unit else text
+
+
 def _pyplot() -> Any:
     try:
         import matplotlib
@@ -76,7 +107,7 @@ def heatmap(
     config: MillConfig = point_config(runner_task({p.value: best[p.value] for p in study.parameters}))
     fig, ax = plt.subplots(figsize=(8, 6))
     mesh = ax.pcolormesh(w_v, w_r, grid, shading="nearest", cmap="viridis")
-    fig.colorbar(mesh, ax=ax, label=metric)
+    fig.colorbar(mesh, ax=ax, label=metric_label(metric))
     params = LimitParams.from_config(config)
     left, right = _edges(w_v)
     bottom, top = _edges(w_r)
@@ -106,10 +137,12 @@ def heatmap(
     ax.set_ylim(bottom, top)
     ax.set_xlabel("ω_v, cam speed (rpm)")
     ax.set_ylabel("ω_r, vial speed (rpm)")
-    ax.set_title(f"{study.study.name}: {metric} ({config.model.variant} model, {config.mill.cam.shape} cam)")
-    ax.legend(loc="best", fontsize=8, framealpha=0.6)
+    ax.set_title(f"{study.study.name}: {metric_label(metric)}\n({config.model.variant} model, "
+                 f"{config.mill.cam.shape} cam)")
+    # below the axes, where it hides no cell of the map
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -124,8 +157,10 @@ def pareto_plot(
     fig, ax = plt.subplots(figsize=(7, 5))
     ax.scatter([r[a] for r in feasible], [r[b] for r in feasible], s=10, color="0.6", label="feasible points")
     ax.plot([r[a] for r in front], [r[b] for r in front], "o-", color="tab:red", label="Pareto front")
-    ax.set_xlabel(metrics[0])
-    ax.set_ylabel(metrics[1])
+    for set_label, metric in ((ax.set_xlabel, metrics[0]), (ax.set_ylabel, metrics[1])):
+        better = "higher" if metric.startswith("-") else "lower"
+        set_label(f"{metric_label(metric)}, {better} is better")  # the raw value is plotted, never its negative
+    ax.set_title(f"Pareto front: {metric_label(metrics[0])} against {metric_label(metrics[1])}", fontsize=10)
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -149,11 +184,20 @@ def sensitivity(
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(lines), figsize=(4 * len(lines), 3.5), squeeze=False)
     for ax, (p, cut) in zip(axes[0], lines, strict=True):
-        ax.plot([float(r[p.value]) for r in cut], [float(r[metric]) for r in cut], "o-")
+        ax.plot([float(r[p.value]) for r in cut], [float(r[metric]) for r in cut], "-", color="tab:blue",
+                label="through the best point")
+        ok = [r for r in cut if r["feasible"]]
+        bad = [r for r in cut if not r["feasible"]]
+        ax.plot([float(r[p.value]) for r in ok], [float(r[metric]) for r in ok], "o", color="tab:blue",
+                label="feasible")
+        if bad:
+            ax.plot([float(r[p.value]) for r in bad], [float(r[metric]) for r in bad], "x", color="tab:red",
+                    markersize=8, label="infeasible (a constraint is violated)")
         ax.axvline(float(best[p.value]), color="tab:red", linewidth=0.8)
-        ax.set_xlabel(Parameter(p).value)
-        ax.set_ylabel(metric)
-    fig.suptitle(f"{study.study.name}: sensitivity of {metric} through the best point")
+        ax.set_xlabel(metric_label(Parameter(p).value))
+        ax.set_ylabel(metric_label(metric))
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{study.study.name}: sensitivity of {metric_label(metric)} through the best point")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -183,4 +227,4 @@ def write_figures(
     return [str(p) for p in written if p is not None]
 
 
-__all__ = ["PAPER_POINT_RPM", "heatmap", "pareto_plot", "sensitivity", "write_figures"]
+__all__ = ["PAPER_POINT_RPM", "heatmap", "metric_label", "pareto_plot", "sensitivity", "write_figures"]

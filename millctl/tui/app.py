@@ -42,6 +42,7 @@ class MillApp(Commanding, Following):
 
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("ctrl+x", "estop", "E-STOP", priority=True),
+        Binding("q", "quit", "Quit"),  # second: on an 80-column footer the last keys are cut off
         Binding("a", "arm", "Arm"),
         Binding("s", "set", "Set ω, °C"),
         Binding("o", "stop", "Stop"),
@@ -53,7 +54,6 @@ class MillApp(Commanding, Following):
         Binding("e", "envelope", "Envelope"),
         Binding("f", "drill", "Fault drill"),
         Binding("c", "control", "Control"),
-        Binding("q", "quit", "Quit"),
     ]
 
     def on_mount(self) -> None:

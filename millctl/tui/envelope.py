@@ -41,13 +41,19 @@ def other_curves(envelope: EnvelopeOut) -> tuple[tuple[Curve, str], ...]:
     return tuple((Curve.from_envelope(envelope, law=name), LAW_COLOUR[LimitLaw(name)]) for name in names)
 
 
-def legend(envelope: EnvelopeOut, status: StatusOut | None) -> Text:
-    """What each mark means, the regime warning in full, and the numbers at the operating point."""
+def legend(envelope: EnvelopeOut, status: StatusOut | None, no_color: bool = False) -> Text:
+    """What each mark means, the regime warning in full, and the numbers at the operating point.
+
+    Under NO_COLOR no colour word names a part of the curve: the regime is told by its ω_v (the ⚠ line).
+    """
     text = Text()
     text.append("⣿ ", style="green")
     text.append(f"enforced limit: {envelope.law} − {envelope.margin:.0%} margin; below it is allowed ", style="bold")
-    text.append("(green: every-cycle bound", style="green")
-    text.append(", yellow: not)\n" if envelope.regime else ")\n", style="yellow" if envelope.regime else "green")
+    if no_color:
+        text.append("(the every-cycle bound except where ⚠ says)\n" if envelope.regime else "\n")
+    else:
+        text.append("(green: every-cycle bound", style="green")
+        text.append(", yellow: not)\n" if envelope.regime else ")\n", style="yellow" if envelope.regime else "green")
     names = envelope.points[0].laws_rotary_rpm if envelope.points else {}
     for name in names:
         law = LimitLaw(name)
@@ -115,7 +121,8 @@ class EnvelopeScreen(Screen[None]):
         height = max(plot.content_size.height, 6)
         plot.update(render_plot(Curve.from_envelope(envelope), width, height, point, target,
                                 others=other_curves(envelope)), layout=False)
-        self.query_one("#envelope-legend", Static).update(legend(envelope, s))
+        self.query_one("#envelope-legend", Static).update(legend(envelope, s, bool(getattr(self.app, "no_color",
+                                                                                            False))))
 
 
 __all__ = ["LAW_COLOUR", "EnvelopeScreen", "legend", "other_curves"]

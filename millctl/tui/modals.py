@@ -18,11 +18,13 @@ from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.screen import ModalScreen
 from textual.widgets import Checkbox, Input, Label, Static
 
 from millctl.api import CheckOut
 from millctl.errors import MillctlError
+from millctl.tui.styles import SHORT_BELOW_ROWS
 
 Checker = Callable[[float, float, float | None], Awaitable[CheckOut]]
 """``check(rotary_rpm, vibration_rpm, temp_c)`` → the service's verdict."""
@@ -80,6 +82,18 @@ def parse_request(rot: str, vib: str, temp: str, rot_rate: str = "", vib_rate: s
                       _rate(rot_rate, "ω_r rate"), _rate(vib_rate, "ω_v rate"), linear)
 
 
+class MarkedCheckbox(Checkbox):
+    """A checkbox whose X is drawn only when ticked: without colour (NO_COLOR) ticked and unticked still differ.
+
+    Textual's own draws the X always and tells the states apart by its colour alone.
+    """
+
+    @property
+    def _button(self) -> Content:
+        self.BUTTON_INNER = "X" if self.value else " "
+        return super()._button
+
+
 class SetpointsModal(ModalScreen[SetRequest | None]):
     """Ask for ω_r, ω_v (rpm) and a furnace target; show the live limit; refuse out-of-envelope values."""
 
@@ -94,26 +108,27 @@ class SetpointsModal(ModalScreen[SetRequest | None]):
         self.initial = (rotary_rpm, vibration_rpm, temp_c)
 
     def compose(self) -> ComposeResult:
-        """Three fields, the live limit, the verdict and the buttons."""
+        """Three fields, the live limit, the verdict and the keys; compact (one row a field) on a short terminal."""
         rot, vib, temp = self.initial
-        with Vertical(id="dialog", classes="dialog"):
+        compact = self.app.size.height < SHORT_BELOW_ROWS  # 80 × 24: everything, the verdict too, on screen
+        with Vertical(id="dialog", classes="dialog -compact" if compact else "dialog"):
             yield Label("Set speeds and furnace — checked against the interlock before anything is sent",
                         classes="dialog-title")
             with Horizontal(classes="field"):
                 yield Label("ω_v vibration (rpm)", classes="field-label")
-                yield Input(f"{vib:g}", id="vib", type="number")
+                yield Input(f"{vib:g}", id="vib", type="number", compact=compact)
             with Horizontal(classes="field"):
                 yield Label("ω_r rotary (rpm)", classes="field-label")
-                yield Input(f"{rot:g}", id="rot", type="number")
+                yield Input(f"{rot:g}", id="rot", type="number", compact=compact)
             with Horizontal(classes="field"):
                 yield Label("furnace (°C, off, or empty)", classes="field-label")
-                yield Input("" if temp is None else f"{temp:g}", id="temp", placeholder="unchanged")
+                yield Input("" if temp is None else f"{temp:g}", id="temp", placeholder="unchanged", compact=compact)
             with Horizontal(classes="field"):
                 yield Label("ramp rates ω_r, ω_v (rpm/s)", classes="field-label")
-                yield Input("", id="rot_rate", type="number", placeholder="ω_r: drive max")
-                yield Input("", id="vib_rate", type="number", placeholder="ω_v: drive max")
-            yield Checkbox("linear path: one straight ramp in both axes (refused if it leaves the envelope)",
-                           id="linear")
+                yield Input("", id="rot_rate", type="number", placeholder="ω_r: drive max", compact=compact)
+                yield Input("", id="vib_rate", type="number", placeholder="ω_v: drive max", compact=compact)
+            yield MarkedCheckbox("linear path: one straight ramp in both axes (refused if it leaves the envelope)",
+                                 id="linear", compact=compact)
             yield Static(id="limit")
             yield Static(id="verdict")
             yield Static("Enter: check and send    Esc: cancel    Tab: next field", classes="hint")
@@ -201,4 +216,4 @@ class ConfirmModal(ModalScreen[bool]):
         self.dismiss(answer)
 
 
-__all__ = ["Checker", "ConfirmModal", "InputError", "SetRequest", "SetpointsModal", "parse_request"]
+__all__ = ["Checker", "ConfirmModal", "InputError", "MarkedCheckbox", "SetRequest", "SetpointsModal", "parse_request"]

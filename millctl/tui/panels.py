@@ -146,13 +146,15 @@ class EnvelopePanel(Static):
         shown_margin = num(margin, ".0%")
         text.append(f"\nlaw {law} · margin {shown_margin} · " if not narrow else f"\n{law} −{shown_margin} · ",
                     style="dim")
-        text.append("green: every-cycle bound" if not narrow else "green: every-cycle", style="green")
-        text.append(" · e: all laws" if not narrow else " · e", style="dim")
+        mono = bool(getattr(self.app, "no_color", False))  # NO_COLOR: no colour word names a part of the curve
+        if not mono:
+            text.append("green: every-cycle bound" if not narrow else "green: every-cycle", style="green")
+        text.append((" · " if not mono else "") + ("e: all laws" if not narrow else "e"), style="dim")
         if env is not None and env.regime is not None:
             here = s is not None and not s.law_is_every_cycle  # the setpoint is in the region: say it louder
             short = f"ω_v > {env.regime.above_vibration_rpm:.1f} rpm: not every-cycle"
             words = env.regime.summary if not narrow else short
-            text.append(f"\n⚠ {words} (yellow)", style="bold yellow" if here else "yellow")
+            text.append(f"\n⚠ {words}" + ("" if mono else " (yellow)"), style="bold yellow" if here else "yellow")
         return text
 
 

@@ -23,7 +23,8 @@ TrendPanel { height: 1fr; }
 #events { height: 1fr; min-height: 4; }
 .dialog { width: 84; max-width: 100%; height: auto; max-height: 100%; overflow-y: auto;
           border: thick $accent; background: $surface; padding: 1 2; }
-SetpointsModal, RecipePicker, FaultDrillModal, ConfirmModal { align: center middle; }
+/* a dialog leaves the state bar (row 0) in sight */
+SetpointsModal, RecipePicker, FaultDrillModal, ConfirmModal { align: center middle; padding-top: 1; }
 #recipes, #faults { height: auto; max-height: 12; }
 #details, #meaning { height: auto; margin-top: 1; }
 .dialog-title { text-style: bold; margin-bottom: 1; }
@@ -35,6 +36,13 @@ SetpointsModal, RecipePicker, FaultDrillModal, ConfirmModal { align: center midd
 .buttons { height: 3; margin-top: 1; align: right middle; }
 .buttons Button { margin-left: 2; }
 .hint { color: $text-muted; margin-top: 1; }
+/* the set dialog on a short terminal (80 × 24): one row a field, so the verdict and the keys fit */
+.dialog.-compact { padding: 0 1; }
+.dialog.-compact .dialog-title { margin-bottom: 0; }
+.dialog.-compact .field { height: 1; margin-bottom: 0; }
+.dialog.-compact .field-label { padding: 0 1 0 0; }
+.dialog.-compact .field Input { margin-right: 1; }
+.dialog.-compact #limit, .dialog.-compact #verdict, .dialog.-compact .hint { margin-top: 0; }
 #envelope-view { height: 1fr; }
 #envelope-plot { height: 1fr; min-height: 6; }
 #envelope-legend { height: auto; }

@@ -99,3 +99,20 @@ def test_live_without_a_service_is_a_clear_error_and_writes_nothing(
     code = main(["--config", CONFIG, "limits", "--plot", str(out), "--live", "--socket", str(tmp_path / "none.sock")])
     assert code == ExitCode.BUS
     assert "none.sock" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_recipe_is_drawn_along_the_planners_path_not_straight_between_its_targets() -> None:
+    from millctl.cli.limits_plot import planned_from_recipe
+
+    demo = str(Path(__file__).resolve().parents[2] / "config" / "recipes" / "demo.toml")
+    targets, label, route = planned_from_recipe(demo, load_config(CONFIG).config)
+    fig = limits_figure(ENVELOPE, "Set A", OperatingPoints(recipe=targets, recipe_label=label, recipe_path=route))
+    drawn = {line.get_label(): line for line in fig.axes[0].get_lines()}
+    path = drawn["planned path: the planner's ramps, one drive after the other, and the final stop"]
+    v, r = np.asarray(path.get_xdata(), dtype=float), np.asarray(path.get_ydata(), dtype=float)
+    assert (v[0], r[0]) == (0.0, 0.0) and (v[-1], r[-1]) == (0.0, 0.0)  # from standstill, back by the final stop
+    moves = list(zip(np.diff(v), np.diff(r), strict=True))
+    assert moves and all(dv == 0.0 or dr == 0.0 for dv, dr in moves)  # one drive at a time: no diagonal
+    assert len(v) > len(targets)  # corners between the targets
+    markers = drawn[f"planned: {label}"]
+    assert markers.get_linestyle() == "None"  # the targets are points; the line is the path

@@ -48,15 +48,15 @@ def test_demo_is_under_a_minute(config: MillConfig) -> None:
     ("body", "pattern"),
     [
         ("[[steps]\nkind = 'hold'", r"TOML syntax error"),
-        ("[[steps]]\nkind = 'hold'\nduration_s = 5\ncolour = 'red'", r"steps\.0\.hold\.colour: unknown key"),
+        ("[[steps]]\nkind = 'hold'\nduration_s = 5\ncolour = 'red'", r"step 1 colour: unknown key"),
         ("[[steps]]\nkind = 'hold'\nduration_sec = 5", r"duration_sec: unknown key"),
         ("[[steps]]\nkind = 'hold'\nduration_s = 5\nduration_min = 1", r"exactly one of duration_s"),
         ("[[steps]]\nkind = 'ramp'\nrotary_rpm = -5\nvibration_rpm = 100", r"rotary_rpm = -5: .*bound: ≥ 0"),
-        ("[[steps]]\nkind = 'spin'\n", r"steps\.0 = .*'spin'.*does not match any of the expected tags"),
+        ("[[steps]]\nkind = 'spin'\n", r"step 1 = .*'spin'.*does not match any of the expected tags"),
         ("", r"steps = \(missing\): Field required"),
         (
             "[[steps]]\nkind = 'ramp'\nrotary_rpm = 60\nvibration_rpm = 300\nheating_rate_c_per_min = 5",
-            r"steps\.0\.ramp: .*heating_rate_c_per_min = 5\.0 given without furnace_c: there is nothing to heat to",
+            r"step 1: .*heating_rate_c_per_min = 5\.0 given without furnace_c: there is nothing to heat to",
         ),
     ],
     ids=[

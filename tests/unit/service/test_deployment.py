@@ -12,7 +12,7 @@ import pytest
 from millctl.cli import main
 from millctl.config import load_config
 from millctl.config.loader import LoadedConfig, packaged_file
-from millctl.config.paths import SOCKET_NAME, service_paths
+from millctl.config.paths import SOCKET_NAME, instance_name, service_paths
 from millctl.errors import ConfigError, ExitCode
 from millctl.service import ServiceRuntime, create_app
 from millctl.service.journal import Journal
@@ -36,8 +36,10 @@ def test_paths_follow_the_conventions_unless_the_config_says(tmp_path: Path, mon
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
     monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
     paths = service_paths(_loaded(tmp_path))
-    assert paths.socket == tmp_path / "run" / "millctl" / SOCKET_NAME
-    assert paths.records_dir == tmp_path / "state" / "millctl" / "records"
+    instance = instance_name(_loaded(tmp_path))  # this config's own folders (issue 39, item 6)
+    assert instance is not None
+    assert paths.socket == tmp_path / "run" / "millctl" / instance / SOCKET_NAME
+    assert paths.records_dir == tmp_path / "state" / "millctl" / instance / "records"
     monkeypatch.setenv("RUNTIME_DIRECTORY", "/run/millctl")  # as systemd sets them
     monkeypatch.setenv("STATE_DIRECTORY", "/var/lib/millctl")
     paths = service_paths(_loaded(tmp_path))
