@@ -41,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     common.add_argument("--json", action="store_true", help="machine-readable output on stdout")
     take = argparse.ArgumentParser(add_help=False)
     take.add_argument("--force", action="store_true", help="take over control whose holder's lease has expired")
-    take.add_argument("--wait", type=nonnegative_float, nargs="?", const=-1.0, default=None, metavar="TIMEOUT_S",
+    waits = argparse.ArgumentParser(add_help=False)
+    waits.add_argument("--wait", type=nonnegative_float, nargs="?", const=-1.0, default=None, metavar="TIMEOUT_S",
                       help="wait until the command's goal is reached (arm: ARMED, disarm: DISABLED, stop: standstill, "
                       "set: both drives at their targets, reset: trip cleared); exit 2 if not within TIMEOUT_S "
                       "(default: arm/disarm 10 s, stop 120 s, reset 15 s, set its ramp + 30 s)")
@@ -50,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                                    description="The controller's status and who holds control.")
     status.set_defaults(handler=_status)
     setp = subparsers.add_parser(
-        "set", parents=[common, take], help="ramp to new speeds (and furnace target); refused outside the envelope"
+        "set", parents=[common, take, waits], help="ramp to new speeds (and furnace target); refused outside the envelope"
     )
     setp.add_argument("--rot-rpm", type=finite_float, required=True, help="rotary speed ω_r (rpm)")
     setp.add_argument("--vib-rpm", type=finite_float, required=True, help="vibration speed ω_v (rpm)")
@@ -62,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
     setp.set_defaults(handler=_set)
     for name, text in SIMPLE_COMMANDS.items():
-        parents = [common] if name in NEEDS_NO_CONTROL else [common, take]
+        parents = [common] if name == "estop" else [common, waits] if name in NEEDS_NO_CONTROL else [common, take, waits]
         sub = subparsers.add_parser(name, parents=parents, help=text)
         sub.set_defaults(handler=_simple, action=name)
     watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)",
@@ -127,6 +128,7 @@ def _simple(args: argparse.Namespace) -> int:
         else:
             with client.control(force=args.force):
                 result = getattr(client, args.action)()
+        if args.action != "estop":
             result = _waited(args, client, args.action, result)
     _report(args, [result])
     return int(ExitCode.OK)

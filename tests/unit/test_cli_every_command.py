@@ -52,6 +52,8 @@ def _commands(tmp: Path) -> dict[str, tuple[list[str], ExitCode]]:
         "bus load": ([], ok),
         "bus frames": ([], ok),
         "bus log convert": ([str(tmp / "no-such.log"), str(tmp / "out.asc")], invalid),
+        "bus log show": ([str(tmp / "no-such.log")], invalid),
+        "bus monitor": (["--duration-s", "0.2"], ok),  # the virtual bus opens; nothing is heard
         "bus check": (["--listen-s", "0"], bus),  # the virtual bus opens; no node answers on it
         "bus export-c": ([str(tmp / "c")], ok),
         "serve": (["--socket", str(tmp / "s.sock")], invalid),  # with bad.toml (_full): ends at once
