@@ -51,7 +51,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
                                    description="The controller's status and who holds control.")
     status.set_defaults(handler=_status)
     setp = subparsers.add_parser(
-        "set", parents=[common, take, waits], help="ramp to new speeds (and furnace target); refused outside the envelope"
+        "set", parents=[common, take, waits],
+        help="ramp to new speeds (and furnace target); refused outside the envelope",
     )
     setp.add_argument("--rot-rpm", type=finite_float, required=True, help="rotary speed ω_r (rpm)")
     setp.add_argument("--vib-rpm", type=finite_float, required=True, help="vibration speed ω_v (rpm)")
@@ -63,7 +64,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     setp.add_argument("--linear", action="store_true", help="one straight ramp in both axes (if inside the envelope)")
     setp.set_defaults(handler=_set)
     for name, text in SIMPLE_COMMANDS.items():
-        parents = [common] if name == "estop" else [common, waits] if name in NEEDS_NO_CONTROL else [common, take, waits]
+        if name == "estop":
+            parents = [common]
+        else:
+            parents = [common, waits] if name in NEEDS_NO_CONTROL else [common, take, waits]
         sub = subparsers.add_parser(name, parents=parents, help=text)
         sub.set_defaults(handler=_simple, action=name)
     watch = subparsers.add_parser("watch", help="a live view of the mill (Ctrl+C to quit)",
