@@ -924,14 +924,13 @@ def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _slip_rows(p, theta0, mu):  # type: ignore[no-untyped-def]
-    """Rows 0, 1: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
+def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
+    """Rows 0, 1 of ``rows``: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
 
     N is the corrected law in both variants; F_t/m = g_eff cos θ (slip.traction_per_mass).
     """
     wr, wv, a0, g = p[_WR], p[_WV], p[_A0], p[_G]
     half = 0.5 * p[_RD] * wv * wv
-    rows = np.zeros((2, _TRIG_COLUMNS))
     for r in range(2):
         sign = -1.0 if r == 0 else 1.0
         rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 6.0
@@ -945,10 +944,12 @@ def _slip_rows(p, theta0, mu):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _slip_onset(p, theta0, mu, t_end):  # type: ignore[no-untyped-def]
-    """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never)."""
-    tr = _slip_rows(p, theta0, mu)
-    st = np.zeros((1, _STATE_COLUMNS))
+def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
+    """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never).
+
+    ``rows``: a (2, trig columns) work array; ``st``: a zeroed (1, state columns) one (unused by the search).
+    """
+    tr = _slip_rows(p, theta0, mu, rows)
     onset = math.inf
     for r in range(2):
         if _trig(tr, r, 0.0, 0, 1.0) <= 0.0:
@@ -974,14 +975,17 @@ TELEMETRY = (
 
 
 @njit(cache=True)
-def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
-    out = np.full((phases, len(TELEMETRY)), math.nan)
-    ev = np.empty(len(OUT))
-    scratch = _scratch(int(p_base[_N]))
+def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
+    """The K telemetry samples of one scene into ``out`` (K rows of :data:`TELEMETRY`), no allocation.
+
+    ``work``: (event row, _scratch, scene row, bottom scene row, slip rows, slip state) from :func:`_telemetry_work`.
+    """
+    ev, scratch, p, pb, slip_tr, slip_st = work
+    out[:, :] = math.nan
     rev = _revolution_s(p_base)
     lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
     for k in range(phases):
-        p = p_base.copy()
+        p[:] = p_base
         p[_TH0], p[_A0] = theta_start, _TWO_PI * k / phases
         arc_end = rev
         if pinned:
@@ -998,12 +1002,31 @@ def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ig
             elif detached:
                 arc_end = ev[_O_TD0]
         # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
-        pb = p.copy()
+        pb[:] = p
         pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
-        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead)
+        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
         if onset < math.inf:
             out[k, 8] = onset
             out[k, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+
+
+@njit(cache=True)
+def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
+    """The work arrays of :func:`_telemetry_into` for scenes of up to n_max rods (made once per batch)."""
+    return (
+        np.empty(len(OUT)),
+        _scratch(n_max),
+        np.empty(len(PARAMS)),
+        np.empty(len(PARAMS)),
+        np.zeros((2, _TRIG_COLUMNS)),
+        np.zeros((1, _STATE_COLUMNS)),
+    )
+
+
+@njit(cache=True)
+def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
+    out = np.empty((phases, len(TELEMETRY)))
+    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])))
     return out
 
 
@@ -1024,6 +1047,37 @@ def telemetry_samples(
         float(friction),
         bool(pinned),
     )
+    return result
+
+
+@njit(cache=True)
+def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu):  # type: ignore[no-untyped-def]
+    out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
+    work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
+    for s in range(rows.shape[0]):
+        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work)
+    return out
+
+
+def telemetry_batch(
+    rows: FloatArray,
+    theta_start_rad: FloatArray,
+    pinned: NDArray[np.bool_],
+    cam_phases: int,
+    flight_cap_s: float,
+    friction: float,
+) -> FloatArray:
+    """:func:`telemetry_samples` of many scenes in one compiled call: shape (scenes, K, len(TELEMETRY)).
+
+    ``rows`` (scenes, len(PARAMS)); ``theta_start_rad`` and ``pinned`` one per scene. The
+    design studies' level (b) (:mod:`millctl.studies.arrays`): no Python per scene.
+    """
+    table = np.ascontiguousarray(rows, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] != len(PARAMS):
+        raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}), got {table.shape}")
+    start = np.ascontiguousarray(theta_start_rad, dtype=np.float64).reshape(table.shape[0])
+    flags = np.ascontiguousarray(pinned, dtype=np.bool_).reshape(table.shape[0])
+    result: FloatArray = _telemetry_batch(table, start, flags, int(cam_phases), float(flight_cap_s), float(friction))
     return result
 
 
@@ -1100,5 +1154,6 @@ __all__ = [
     "first_impacts",
     "scene_row",
     "scene_rows",
+    "telemetry_batch",
     "telemetry_samples",
 ]
