@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import time
 from pathlib import Path
 from typing import Any
@@ -55,18 +56,19 @@ def _run(args: argparse.Namespace) -> int:
     check_parameters(study, loaded.config, args.file)
     runner = StudyRunner(study, loaded.config, args.file)
     store = ResultsStore(_results_path(args), runner.fingerprint)
-    if args.fresh:
-        store.reset()
-    reused = store.resume()
-    runner.store = store
-    pareto = _pareto_metrics(args.pareto, runner.metrics)
-    err = stderr_console()
-    backend = make_backend(args.workers, args.scheduler)
-    started = time.perf_counter()
+    store.lock()  # one run per results file: a second is refused with this PID
     try:
-        result = _with_progress(runner, backend, err, study.study.name)
+        if args.fresh:
+            store.reset()
+        reused = store.resume()
+        runner.store = store
+        pareto = _pareto_metrics(args.pareto, runner.metrics)
+        err = stderr_console()
+        backend = make_backend(args.workers, args.scheduler)
+        started = time.perf_counter()
+        result = _interruptible(runner, backend, err, study.study.name, store)
     finally:
-        backend.close()
+        store.unlock()
     elapsed = time.perf_counter() - started
     summary = _summary(args, study, loaded.source, store, result, backend, elapsed, reused, pareto)
     summary["fingerprint"] = runner.fingerprint
@@ -96,6 +98,34 @@ def _pareto_metrics(text: str | None, metrics: tuple[str, ...]) -> list[str] | N
             f"{', '.join(metrics)}"
         )
     return names
+
+
+def _interruptible(runner: Any, backend: Any, console: Any, name: str, store: Any) -> Any:
+    """Run the study; on Ctrl+C (SIGINT to the group or to this process) stop the workers at once.
+
+    Every finished batch is already in the results file (the store writes each as it comes);
+    the batches running are lost, the rest never start. Says what was saved, then lets the
+    interrupt end the command (exit code 130).
+    """
+    # Ctrl+C must reach the study even where it was started with SIGINT ignored (a background job of a
+    # script, a test's subprocess): Python then never installs its KeyboardInterrupt handler by itself
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        result = _with_progress(runner, backend, console, name)
+    except KeyboardInterrupt:
+        backend.abort()
+        console.print(
+            f"interrupted: {len(store.rows)} finished points are in {store.path}; run the same command to resume",
+            highlight=False,
+        )
+        raise
+    except BaseException:
+        backend.abort()
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    backend.close()
+    return result
 
 
 def _with_progress(runner: Any, backend: Any, console: Any, name: str) -> Any:

@@ -108,6 +108,15 @@ class StudyRunner:
         self._index: dict[str, int] = {}
         self.computed = 0
 
+    @property
+    def batch_cap(self) -> int:
+        """The largest batch: arrays of up to 1024 level-(a, b) points; 16 points when one simulates (level c).
+
+        A batch is the unit an interrupt loses (the finished ones are saved), and a simulated point takes
+        tens of milliseconds where an array point takes tens of microseconds.
+        """
+        return 16 if any(METRICS[n].level == "c" for n in self.metrics) else 1024
+
     def task(self, params: dict[str, ParamValue]) -> PointTask:
         """The task of one point (its number is the order in which the study first asked for it)."""
         key = point_key(params)
@@ -124,7 +133,7 @@ class StudyRunner:
         """Rows of the points, computing only those not yet in the store; in the order given."""
         tasks = [self.task(p) for p in points]
         pending = [t for t in tasks if point_key(t.params) not in self.store.rows]
-        size = self._batch_size or max(1, min(64, math.ceil(len(pending) / (8 * backend.workers))))
+        size = self._batch_size or max(1, min(self.batch_cap, math.ceil(len(pending) / (8 * backend.workers))))
         done = len(tasks) - len(pending)
         if progress is not None:
             progress(done, len(tasks))
