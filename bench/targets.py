@@ -66,7 +66,8 @@ def issue40(res: dict[str, Any]) -> list[dict[str, Any]]:
         rows.append(_row("one event through the public API", compiled["public_api"]["us_per_event"], 3.0, "µs", True))
     st = res.get("study", {})
     if "arrays" in st:
-        rows.append(_row("100×100 level-(b) map", st["arrays"]["points_per_cpu_s"], 1e5, "points/s/core"))
+        side = round(st["arrays"]["points"] ** 0.5)
+        rows.append(_row(f"{side}×{side} level-(b) map", st["arrays"]["points_per_cpu_s"], 1e5, "points/s/core"))
     for key, label in (("local", "2 local cores"), ("dask", "2-worker local Dask cluster")):
         if key in st.get("parallel", {}):
             rows.append(_row(f"parallel efficiency, {label}", st["parallel"][key]["efficiency"], 0.8, "share"))
