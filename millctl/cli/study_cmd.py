@@ -64,7 +64,7 @@ def _run(args: argparse.Namespace) -> int:
         runner.store = store
         pareto = _pareto_metrics(args.pareto, runner.metrics)
         err = stderr_console()
-        backend = make_backend(args.workers, args.scheduler)
+        backend = make_backend(args.workers, args.scheduler, *_size(study, runner))
         started = time.perf_counter()
         result = _interruptible(runner, backend, err, study.study.name, store)
     finally:
@@ -98,6 +98,26 @@ def _pareto_metrics(text: str | None, metrics: tuple[str, ...]) -> list[str] | N
             f"{', '.join(metrics)}"
         )
     return names
+
+
+def _size(study: Any, runner: Any) -> tuple[int, bool]:
+    """Points to compute (a grid's pending ones; an optimiser's population per generation) and whether they simulate."""
+    from millctl.studies.metrics import METRICS
+    from millctl.studies.run import grid_points
+
+    simulated = any(METRICS[n].level == "c" for n in runner.metrics)
+    if study.is_optimisation:
+        settings = study.optimiser
+        population = (settings.population if settings is not None else 8) * len(study.parameters)
+        return population, simulated
+    pending = [p for p in grid_points(study) if runner.store is None or _key(p) not in runner.store.rows]
+    return len(pending), simulated
+
+
+def _key(params: dict[str, Any]) -> str:
+    from millctl.studies.engine import point_key
+
+    return point_key(params)
 
 
 def _interruptible(runner: Any, backend: Any, console: Any, name: str, store: Any) -> Any:

@@ -206,11 +206,36 @@ class DaskBackend:
         self.close()
 
 
-def make_backend(workers: int | None = None, scheduler: str | None = None) -> Backend:
-    """The backend for the command line: Dask when a scheduler is named, else local processes."""
+POINT_S = {"array": 2e-5, "simulated": 3e-2}
+"""Nominal serial cost of a point (s): level (a, b) by the array path, level (c) (bench/study.py measures both)."""
+WORKER_STARTUP_S = 3.0
+"""Nominal start-up of a local pool, its workers' imports and compiled code loaded (s; bench/study.py measures it)."""
+
+
+def worth_workers(points: int, simulated: bool, workers: int) -> bool:
+    """Whether ``workers`` workers keep ≥ 80 % efficiency on ``points`` points: N·c ≥ 4·w·S.
+
+    With N points of serial cost c and a pool that takes S to start, the efficiency is
+    N c / (w S + N c), ≥ 0.8 exactly when N c ≥ 4 w S: a level-(c) study pays from a few
+    thousand points, a level-(a, b) one only past ~10⁶ (docs/benchmarks.md, section 4).
+    """
+    cost = POINT_S["simulated" if simulated else "array"]
+    return workers > 1 and points * cost >= 4.0 * workers * WORKER_STARTUP_S
+
+
+def make_backend(
+    workers: int | None = None, scheduler: str | None = None, points: int | None = None, simulated: bool = True
+) -> Backend:
+    """The backend for the command line: Dask when a scheduler is named, else local processes.
+
+    Without ``workers``: every local core when the study (``points``, ``simulated``: has level-(c)
+    metrics) is large enough to gain from them (:func:`worth_workers`), else this process alone.
+    """
     if scheduler:
         return DaskBackend(scheduler)
     count = local_cores() if workers is None else workers
+    if workers is None and points is not None and not worth_workers(points, simulated, count):
+        count = 1
     return SerialBackend() if count == 1 else LocalBackend(count)
 
 
@@ -230,4 +255,5 @@ __all__ = [
     "batched",
     "local_cores",
     "make_backend",
+    "worth_workers",
 ]

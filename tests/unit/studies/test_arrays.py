@@ -72,3 +72,14 @@ def test_an_impossible_mill_is_reported_at_its_points_and_the_rest_evaluated(con
 def test_arrays_of_unequal_length_are_refused(config: MillConfig) -> None:
     with pytest.raises(Exception, match="length 2"):
         evaluate_arrays({"rotary_rpm": np.zeros(2), "vibration_rpm": np.zeros(3)}, config, ("gamma",))
+
+
+def test_workers_are_used_only_where_they_keep_80_percent_efficiency() -> None:
+    from millctl.studies.backends import POINT_S, WORKER_STARTUP_S, SerialBackend, make_backend, worth_workers
+
+    # N·c ≥ 4·w·S: the smallest study that pays, on either side of it
+    simulated = math.ceil(4 * 2 * WORKER_STARTUP_S / POINT_S["simulated"])
+    assert worth_workers(simulated, True, 2) and not worth_workers(simulated - 1, True, 2)
+    assert not worth_workers(100 * 100, False, 2)  # a level-(a, b) map: ~0.2 s of work, seconds of start-up
+    assert not worth_workers(10**9, True, 1)
+    assert isinstance(make_backend(None, None, 100 * 100, simulated=False), SerialBackend)
