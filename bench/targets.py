@@ -5,10 +5,10 @@ ratio of alternated, paired runs, so that other processes' load on a shared mach
 it directly; the host's load is still recorded with every table (``loads``), because a loaded machine
 slows even CPU time (caches, frequency, hyper-threads) and makes wall-clock efficiencies meaningless.
 
-``--write-docs`` refuses to replace docs/benchmarks.md with figures from a loaded run:
-the 1-minute load average at the start of the run and at the start of every piece must be at most
-:data:`LOAD_PER_CPU_MAX` per CPU over the benchmark's own one process (it adds about 1; 2 while
-its workers run).
+``--write-docs`` refuses to replace docs/benchmarks.md with figures from a loaded run: the
+1-minute load average may exceed :data:`LOAD_PER_CPU_MAX` per CPU by no more than what the benchmark
+itself adds — :data:`OWN_LOAD` at the start of the run (its own process), :data:`OWN_LOAD_PIECES` at
+the start of a piece (the average still holds the previous piece's workers and hil processes).
 """
 
 from __future__ import annotations
@@ -18,8 +18,10 @@ from typing import Any
 
 LOAD_PER_CPU_MAX = 0.25
 """The load (1-minute average, per CPU) of other work that ``--write-docs`` accepts."""
-OWN_LOAD = 2.0
-"""What the benchmark itself adds to the load average (its process, and two workers while they run)."""
+OWN_LOAD = 1.0
+"""What the benchmark adds to the load average as it starts (its own process)."""
+OWN_LOAD_PIECES = 5.0
+"""What it may add at the start of a piece: two study workers, or the hil tier's nodes, controller and service."""
 
 
 def load_now() -> dict[str, Any]:
@@ -28,25 +30,25 @@ def load_now() -> dict[str, Any]:
     return {"loadavg": [round(one, 2), round(five, 2), round(fifteen, 2)], "cpus": os.cpu_count() or 1}
 
 
-def load_threshold(cpus: int) -> float:
+def load_threshold(cpus: int, own: float = OWN_LOAD) -> float:
     """The largest 1-minute load average a run may see and still write the document."""
-    return LOAD_PER_CPU_MAX * cpus + OWN_LOAD
+    return LOAD_PER_CPU_MAX * cpus + own
 
 
 def loaded(res: dict[str, Any]) -> str | None:
     """Why ``res`` came from a loaded run (the load, where, the threshold), or None if it did not."""
     cpus = int(res["machine"]["cpu_count"] or 1)
-    threshold = load_threshold(cpus)
-    seen = [("the start", float(res["machine"]["loadavg"][0]))]
-    seen += [(f"the start of {piece}", float(v["loadavg"][0])) for piece, v in res.get("loads", {}).items()]
-    worst_at, worst = max(seen, key=lambda x: x[1])
-    if worst <= threshold:
-        return None
-    return (
-        f"the 1-minute load average was {worst:.2f} at {worst_at} of this run on {cpus} CPUs, above the threshold "
-        f"{threshold:.2f} ({LOAD_PER_CPU_MAX} per CPU of other work + {OWN_LOAD:g} for the benchmark itself): "
-        "figures from a loaded host are not committed (docs/benchmarks.md); rerun on a quiet host"
-    )
+    seen = [("the start", float(res["machine"]["loadavg"][0]), OWN_LOAD)]
+    seen += [(f"the start of {p}", float(v["loadavg"][0]), OWN_LOAD_PIECES) for p, v in res.get("loads", {}).items()]
+    for where, load, own in seen:
+        threshold = load_threshold(cpus, own)
+        if load > threshold:
+            return (
+                f"the 1-minute load average was {load:.2f} at {where} of this run on {cpus} CPUs, above the "
+                f"threshold {threshold:.2f} ({LOAD_PER_CPU_MAX} per CPU of other work + {own:g} for the benchmark "
+                "itself): figures from a loaded host are not committed (docs/benchmarks.md); rerun on a quiet host"
+            )
+    return None
 
 
 def _row(name: str, measured: float | None, target: float, unit: str, at_most: bool = False) -> dict[str, Any]:
@@ -107,4 +109,14 @@ def load_line(res: dict[str, Any], *pieces: str) -> str:
     return f"Host load (1-minute average at the start of each piece) on {cpus} CPUs: {shown}."
 
 
-__all__ = ["LOAD_PER_CPU_MAX", "OWN_LOAD", "issue40", "load_line", "load_now", "load_threshold", "loaded", "report"]
+__all__ = [
+    "LOAD_PER_CPU_MAX",
+    "OWN_LOAD",
+    "OWN_LOAD_PIECES",
+    "issue40",
+    "load_line",
+    "load_now",
+    "load_threshold",
+    "loaded",
+    "report",
+]
