@@ -211,21 +211,23 @@ def _group_metrics(
     points: PointArrays, names: Sequence[str], settings: PointSettings, seeds: Callable[[int], int]
 ) -> tuple[dict[str, FloatArray], NDArray[np.int64]]:
     """The named metrics of one group (array forms; the rest point by point) and the events spent."""
-    levels = {METRICS[n].level for n in names}
     events = np.zeros(points.size, dtype=np.int64)
-    if "b" in levels:
+    # level (b)'s array forms sample K fixed cam phases: a study that asks for none (0) is left to the point path
+    arrays = [n for n in names if n in ARRAY_METRICS and (METRICS[n].level != "b" or settings.cam_phases >= 1)]
+    if any(METRICS[n].level == "b" for n in arrays):
         events += settings.cam_phases
-    values = {n: np.asarray(ARRAY_METRICS[n](points), dtype=float) for n in names if n in ARRAY_METRICS}
-    rest = tuple(n for n in names if n not in ARRAY_METRICS)
+    values = {n: np.asarray(ARRAY_METRICS[n](points), dtype=float) for n in arrays}
+    rest = tuple(n for n in names if n not in arrays)
     if rest:
         extra = np.empty((points.size, len(rest)))
         rest_levels = {METRICS[n].level for n in rest}
+        array_levels = {METRICS[n].level for n in arrays}
         for i in range(points.size):
             row, spent = compute_metrics(
                 points.config, float(points.omega_r_rad_s[i]), float(points.omega_v_rad_s[i]), rest, settings, seeds(i)
             )
             extra[i] = [row[n] for n in rest]
-            events[i] += spent - (settings.cam_phases if "b" in rest_levels else 0)
+            events[i] += spent - (settings.cam_phases if "b" in rest_levels and "b" in array_levels else 0)
         values |= {n: extra[:, k] for k, n in enumerate(rest)}
     return values, events
 
