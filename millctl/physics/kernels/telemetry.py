@@ -50,19 +50,23 @@ from millctl.physics.kernels.trig import _set_term, _trig
 def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
     """Rows 0, 1 of ``rows``: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
 
-    N is the corrected law in both variants; F_t/m = g_eff cos θ (slip.traction_per_mass).
+    N is the corrected law in both variants; F_t/m = g_eff cos θ (slip.traction_per_mass). The six terms
+    μg cos(θ + π/2) ∓ g cos θ, and the cam's ±½ r_d ω_v² pairs at ω_v ∓ ω_r, merge by a cos x + b sin x =
+    √(a² + b²) cos(x − atan2(b, a)) into three, the slow one first (as in N), so that the search skips the
+    arc where the slow term alone keeps the margin positive (:func:`.detach._held_until`).
     """
     wr, wv, a0, g = p[_WR], p[_WV], p[_A0], p[_G]
     half = 0.5 * p[_RD] * wv * wv
+    scale = math.sqrt(1.0 + mu * mu)
     for r in range(2):
         sign = -1.0 if r == 0 else 1.0
-        rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 6.0
-        _set_term(rows, r, 0, mu * g, wr, theta0 + 0.5 * math.pi)
-        _set_term(rows, r, 1, mu * half, wv - wr, a0 - theta0)
-        _set_term(rows, r, 2, mu * -half, wv + wr, a0 + theta0)
-        _set_term(rows, r, 3, sign * g, wr, theta0)
-        _set_term(rows, r, 4, sign * -half, wv + wr, a0 + theta0 - 0.5 * math.pi)
-        _set_term(rows, r, 5, sign * -half, wv - wr, a0 - theta0 - 0.5 * math.pi)
+        rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 3.0
+        # μg cos(θ + π/2) + sign·g cos θ = g √(1 + μ²) cos(θ + atan2(μ, sign))
+        _set_term(rows, r, 0, g * scale, wr, theta0 + math.atan2(mu, sign))
+        # ½ r_d ω_v² (μ cos y − sign·sin y), y = (ω_v − ω_r) t + α0 − θ0
+        _set_term(rows, r, 1, half * scale, wv - wr, a0 - theta0 + math.atan2(sign, mu))
+        # −½ r_d ω_v² (μ cos y + sign·sin y), y = (ω_v + ω_r) t + α0 + θ0
+        _set_term(rows, r, 2, -half * scale, wv + wr, a0 + theta0 - math.atan2(sign, mu))
     return rows
 
 
