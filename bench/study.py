@@ -155,7 +155,7 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     progress("study: level (c), one worker")
     out["offline"] = offline(3)
     progress("study: parallel efficiency, alternated serial and two workers (local, Dask)")
-    out["parallel"] = parallel(4 if quick else 12, 1 if quick else 3)
+    out["parallel"] = parallel(6 if quick else 24, 1 if quick else 3)
     return out
 
 
