@@ -7,7 +7,8 @@
 * :func:`impact_threshold_j`: the energy below which a landing is not an impact (a micro-hop);
 * :func:`impact_loads` (level b): the impact force of eq. 20 and the rod–rod shear it makes;
 * :func:`slip_ride_metrics` (level s): rod 0 ridden with Coulomb friction over K cam phases
-  (:mod:`millctl.physics.slip_ride`), its wall impacts above the threshold.
+  (:mod:`millctl.physics.slip_ride`), its wall impacts above the threshold;
+* :func:`carried_arc_slip` (level c): where the multi-rod simulation's no-slip carriage fails.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from millctl.config.models import MillConfig, ModelVariant
 from millctl.physics import structure as st
 from millctl.physics.impact import effective_modulus_pa
 from millctl.physics.model import MillModel, Scene
+from millctl.physics.slip import no_slip_check
 from millctl.physics.slip_ride import fly_to_wall, ride
 from millctl.units import rad_s_to_rpm
 
@@ -146,4 +148,36 @@ def slip_ride_metrics(
     }, events
 
 
-__all__ = ["impact_loads", "impact_threshold_j", "slip_ride_metrics", "structural_metrics", "structural_violations"]
+def carried_arc_slip(scene: Scene, impacts: NDArray[np.void], detachments: NDArray[np.void]) -> tuple[float, float]:
+    """Slip along the carried arcs of a multi-rod simulation (level c): (share that slip, mean lead in deg).
+
+    Each departure ends an arc on which the rod was carried from its last landing (or from t = 0):
+    :func:`~millctl.physics.slip.no_slip_check` says whether, and from when, that carriage needs
+    |F_t| > μN. The lead is the wall angle ω_r (t_d − t_onset) over which the no-slip picture is
+    wrong before the rod leaves (0 where it holds). (nan, nan) without departures.
+    """
+    w_r = scene.omega_r_rad_s
+    slipped, leads = 0, []
+    for t_d, rod in zip(detachments["time_s"], detachments["rod"], strict=True):
+        before = impacts[(impacts["rod"] == rod) & (impacts["time_s"] < t_d)]
+        if before.size:
+            last = before[np.argmax(before["time_s"])]
+            t_0, theta_0 = float(last["time_s"]), float(last["theta_rad"])
+        else:
+            t_0, theta_0 = 0.0, scene.rod_theta0_rad(int(rod))
+        check = no_slip_check(scene, theta0_rad=theta_0 - w_r * t_0, t_start_s=t_0, arc_end_s=float(t_d))
+        slipped += check.violated
+        leads.append(math.degrees(w_r * (float(t_d) - check.onset_time_s)) if check.violated else 0.0)
+    if not leads:
+        return math.nan, math.nan
+    return slipped / len(leads), float(np.mean(leads))
+
+
+__all__ = [
+    "carried_arc_slip",
+    "impact_loads",
+    "impact_threshold_j",
+    "slip_ride_metrics",
+    "structural_metrics",
+    "structural_violations",
+]

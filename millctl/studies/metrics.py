@@ -29,6 +29,7 @@ from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import simulate
 from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S, RevolutionSummary, revolution_summary
 from millctl.studies.loads import (
+    carried_arc_slip,
     impact_loads,
     impact_threshold_j,
     slip_ride_metrics,
@@ -88,6 +89,8 @@ _LIST = [
     Metric("impact_energy_p10_j", "c", "10th percentile of impact energy over the simulated impacts (J)"),
     Metric("impact_energy_p90_j", "c", "90th percentile of impact energy over the simulated impacts (J)"),
     Metric("sim_impact_rate_hz", "c", "impacts per second in the multi-rod simulation, whole mill"),
+    Metric("sim_slip_fraction", "c", "share of the simulation's carried arcs whose carriage needs |F_t| > μN"),
+    Metric("sim_slip_lead_deg", "c", "mean wall angle before a departure over which the carriage slips (deg)"),
     Metric("spin_shear_pa", "c", "eqs 26–27 corrected at the wall impacts: min(|F_t|, μN)/(2 L b), mean (Pa)"),
 ]
 METRICS: dict[str, Metric] = {m.name: m for m in _LIST}
@@ -185,10 +188,14 @@ def _level_c(model: MillModel, w_r: float, w_v: float, revolutions: float, seed:
             "impact_energy_p90_j": nan,
             "sim_impact_rate_hz": 0.0,
             "spin_shear_pa": nan,
+            "sim_slip_fraction": nan,
+            "sim_slip_lead_deg": nan,
         }, 0
     theta0, alpha0 = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi, size=2)
     t_end = revolutions * 2.0 * math.pi / w_r
-    result = simulate(Scene(model, w_r, w_v, float(theta0), float(alpha0)), t_end)
+    scene = Scene(model, w_r, w_v, float(theta0), float(alpha0))
+    result = simulate(scene, t_end)
+    slip_share, slip_lead = carried_arc_slip(scene, result.impacts, result.detachments)
     counted = result.impacts[result.impacts["energy_j"] >= impact_threshold_j(model)]
     energies = counted["energy_j"]
     wall = counted[counted["partner"] == -1]
@@ -204,6 +211,8 @@ def _level_c(model: MillModel, w_r: float, w_v: float, revolutions: float, seed:
         "impact_energy_p90_j": float(np.percentile(energies, 90)) if energies.size else nan,
         "sim_impact_rate_hz": energies.size / t_end,
         "spin_shear_pa": float(np.mean(spins)) if spins else nan,
+        "sim_slip_fraction": slip_share,
+        "sim_slip_lead_deg": slip_lead,
     }
     return out, int(result.impacts.size + result.detachments.size)
 

@@ -149,3 +149,17 @@ def test_slip_metrics_with_the_slip_ride(config: MillConfig) -> None:
         model = dataclasses.replace(MillModel.from_config(cfg))
         rate = model.n_rods * values["slip_impact_fraction"] * rpm_to_rad_s(200.0) / (2 * math.pi)
         assert values["slip_milling_power_w"] == pytest.approx(rate * values["slip_impact_energy_mean_j"])
+
+
+def test_the_multi_rod_simulation_says_where_its_carriage_slips(config: MillConfig) -> None:
+    """Level (c): every carried arc that ends in a departure slips before it (|F_t|/N → ∞ as N → 0); the
+    arc over which it does shrinks as the wall's grip μ grows."""
+    leads = []
+    for mu in (0.3, 1.0, 2.0):
+        values = metrics(
+            corrected(config, powder_friction=mu), 200.0, 800.0, "sim_slip_fraction", "sim_slip_lead_deg",
+            revolutions=2.0,
+        )  # fmt: skip
+        assert values["sim_slip_fraction"] == 1.0
+        leads.append(values["sim_slip_lead_deg"])
+    assert 0.0 < leads[2] < leads[1] < leads[0] < 360.0
