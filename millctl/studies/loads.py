@@ -51,28 +51,38 @@ def structural_metrics(config: MillConfig, omega_r_rad_s: ArrayLike, omega_v_rad
     }
 
 
+def structural_violation_texts(
+    config: MillConfig, omega_v_rpm: ArrayLike, cam_contact: bool, contact_fatigue: bool
+) -> list[list[str]]:
+    """The structural constraints broken at each cam speed of an array (rpm): one list of texts per point.
+
+    Vectorised over the points (the array engine's form); each text says the value, the bound and
+    where to read more.
+    """
+    p = st.StructureParams.from_config(config)
+    w_v_rpm = np.atleast_1d(np.asarray(omega_v_rpm, dtype=float))
+    f_min, f_max = st.cam_contact_force_range_n(p, w_v_rpm * math.pi / 30.0)
+    pressure = st.cam_contact_pressure_pa(p, f_max)
+    jump = float(rad_s_to_rpm(st.follower_jump_rad_s(p)))
+    found: list[list[str]] = [[] for _ in range(w_v_rpm.size)]
+    for i in np.flatnonzero(f_min < 0.0) if cam_contact else ():
+        found[i].append(
+            f"cam contact force min {f_min[i]:.3g} N < 0 at ω_v = {w_v_rpm[i]:.0f} rpm: the roller leaves the cam "
+            f"above {jump:.1f} rpm (docs/model.md#structural-loads)"
+        )
+    for i in np.flatnonzero(pressure > p.endurance_pa) if contact_fatigue else ():
+        found[i].append(
+            f"cam contact pressure {pressure[i] / 1e6:.4g} MPa > endurance limit {p.endurance_pa / 1e6:g} MPa "
+            f"at ω_v = {w_v_rpm[i]:.0f} rpm (docs/model.md#structural-loads)"
+        )
+    return found
+
+
 def structural_violations(
     config: MillConfig, omega_v_rpm: float, cam_contact: bool, contact_fatigue: bool
 ) -> list[str]:
-    """The structural constraints a speed breaks, each with its value, bound and where to read more."""
-    p = st.StructureParams.from_config(config)
-    w_v = float(omega_v_rpm) * math.pi / 30.0
-    f_min, f_max = (float(x) for x in st.cam_contact_force_range_n(p, w_v))
-    found = []
-    if cam_contact and f_min < 0.0:
-        jump = float(rad_s_to_rpm(st.follower_jump_rad_s(p)))
-        found.append(
-            f"cam contact force min {f_min:.3g} N < 0 at ω_v = {omega_v_rpm:.0f} rpm: the roller leaves the cam "
-            f"above {jump:.1f} rpm (docs/model.md#structural-loads)"
-        )
-    if contact_fatigue:
-        pressure = float(st.cam_contact_pressure_pa(p, f_max))
-        if pressure > p.endurance_pa:
-            found.append(
-                f"cam contact pressure {pressure / 1e6:.4g} MPa > endurance limit {p.endurance_pa / 1e6:g} MPa "
-                f"at ω_v = {omega_v_rpm:.0f} rpm (docs/model.md#structural-loads)"
-            )
-    return found
+    """The structural constraints one cam speed (rpm) breaks (:func:`structural_violation_texts` of one point)."""
+    return structural_violation_texts(config, omega_v_rpm, cam_contact, contact_fatigue)[0]
 
 
 def _rod_wall(model: MillModel) -> tuple[float, float, float, float]:
@@ -179,5 +189,6 @@ __all__ = [
     "impact_threshold_j",
     "slip_ride_metrics",
     "structural_metrics",
+    "structural_violation_texts",
     "structural_violations",
 ]

@@ -16,9 +16,9 @@ from millctl.physics import structure as st
 from millctl.physics.model import MillModel
 from millctl.physics.slip import traction_ratio
 from millctl.physics.telemetry import revolution_summary
-from millctl.studies.loads import impact_loads, impact_threshold_j
+from millctl.studies.loads import impact_loads, impact_threshold_j, structural_violation_texts
 from millctl.studies.metrics import PointSettings, cam_phase_summary, compute_metrics
-from millctl.units import rpm_to_rad_s
+from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 from tests.conftest import CONFIG_FILE, REPO
 
 
@@ -163,3 +163,17 @@ def test_the_multi_rod_simulation_says_where_its_carriage_slips(config: MillConf
         assert values["sim_slip_fraction"] == 1.0
         leads.append(values["sim_slip_lead_deg"])
     assert 0.0 < leads[2] < leads[1] < leads[0] < 360.0
+
+
+def test_structural_constraints_name_value_and_bound_per_point(config: MillConfig) -> None:
+    jump_rpm = rad_s_to_rpm(st.follower_jump_rad_s(st.StructureParams.from_config(config)))
+    speeds = np.array([0.9 * jump_rpm, 1.1 * jump_rpm])
+    texts = structural_violation_texts(config, speeds, cam_contact=True, contact_fatigue=True)
+    assert texts[0] == [] and len(texts[1]) == 1 and "roller leaves the cam" in texts[1][0]
+    assert f"{jump_rpm:.1f} rpm" in texts[1][0]
+    data = config.model_dump(mode="json")
+    data["mill"]["structure"] = {"contact_endurance_mpa": 100.0}  # below the static contact's own pressure
+    weak = MillConfig.model_validate(data)
+    texts = structural_violation_texts(weak, speeds, cam_contact=False, contact_fatigue=True)
+    assert all(len(t) == 1 and "> endurance limit 100 MPa" in t[0] for t in texts)
+    assert structural_violation_texts(weak, speeds, cam_contact=False, contact_fatigue=False) == [[], []]
