@@ -198,6 +198,7 @@ def _summary(
         "objective": result.objective,
         "metrics": list(result.metrics),
         "best": _clean(result.best),
+        "findings": [_clean(f) for f in result.findings],
     }
     if pareto is not None:
         data["pareto"] = pareto
@@ -226,6 +227,16 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
         for row in summary["pareto_front"]:
             front.add_row(str(row["point"]), *(_fmt(row[p]) for p in params), *(_fmt(row[n]) for n in names))
         out.print(front)
+    if summary["findings"]:
+        found = Table(title="findings: the best feasible point of each group, by each criterion")
+        names = [k for k in summary["findings"][0] if k not in ("point", "value")]
+        extra = [k for f in summary["findings"] for k in f if k not in names and k not in ("point", "value")]
+        names += list(dict.fromkeys(extra))
+        for name in (*names, "point", "value"):
+            found.add_column(name, justify="right")
+        for f in summary["findings"]:
+            found.add_row(*(_fmt(f.get(n)) for n in (*names, "point", "value")))
+        out.print(found)
     rate = summary["points_per_s"]
     stderr_console().print(
         f"{summary['points']} points ({summary['computed']} computed, {summary['reused']} from {summary['results']}), "
@@ -245,6 +256,8 @@ def _param_columns(rows: list[dict[str, Any]]) -> set[str]:
 
 
 def _fmt(value: Any) -> str:
+    if value is None:
+        return "—"
     if isinstance(value, float):
         if not math.isfinite(value):
             return "—"

@@ -48,6 +48,7 @@ from millctl.errors import InvalidInputError, PhysicsInputError
 from millctl.physics.limits import LimitParams, omega_r_max
 from millctl.physics.model import MillModel
 from millctl.studies.arrays import ARRAY_METRICS, FloatArray, PointArrays
+from millctl.studies.loads import structural_violations
 from millctl.studies.metrics import METRICS, PointSettings, compute_metrics
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
@@ -64,6 +65,7 @@ CONFIG_PATHS: dict[str, tuple[str, ...]] = {
     "vial_radius_mm": ("mill", "vial", "radius_mm"),
     "vial_material": ("mill", "vial", "material"),
     "powder_charge_g": ("mill", "powder", "charge_g"),
+    "variant": ("model", "variant"),
 }
 """Where each design parameter lives in the mill configuration."""
 
@@ -76,6 +78,8 @@ class ConstraintSpec:
     drives: bool = True
     max_vibration_rpm: float | None = None
     max_spring_force_n: float | None = None
+    cam_contact: bool = False
+    contact_fatigue: bool = False
 
 
 @dataclass(frozen=True)
@@ -152,6 +156,8 @@ def violations(config: MillConfig, rotary_rpm: float, vibration_rpm: float, c: C
         force = config.mill.spring.stiffness_n_per_m * config.mill.cam.eccentricity_m
         if force > c.max_spring_force_n:
             found.append(f"spring force amplitude k·r_d = {force:.3g} N > structural limit {c.max_spring_force_n:g} N")
+    if c.cam_contact or c.contact_fatigue:
+        found += structural_violations(config, vibration_rpm, c.cam_contact, c.contact_fatigue)
     return found
 
 
