@@ -29,7 +29,7 @@ from millctl.errors import InvalidInputError
 
 FINGERPRINT_KEY = "millctl.study.fingerprint"
 CSV_MARK = "# millctl study fingerprint="
-TEXT_COLUMNS = frozenset({"key", "violations", "cam_shape", "rod_material", "vial_material"})
+TEXT_COLUMNS = frozenset({"key", "violations", "cam_shape", "rod_material", "vial_material", "variant"})
 BOOL_COLUMNS = frozenset({"feasible"})
 INT_COLUMNS = frozenset({"point", "events", "n_rods"})
 
