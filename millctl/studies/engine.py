@@ -48,7 +48,7 @@ from millctl.errors import InvalidInputError, PhysicsInputError
 from millctl.physics.limits import LimitParams, omega_r_max
 from millctl.physics.model import MillModel
 from millctl.studies.arrays import ARRAY_METRICS, FloatArray, PointArrays
-from millctl.studies.loads import structural_violations
+from millctl.studies.loads import structural_violation_texts, structural_violations
 from millctl.studies.metrics import METRICS, PointSettings, compute_metrics
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
@@ -210,6 +210,10 @@ def _violations_arrays(
         if force > c.max_spring_force_n:
             text = f"spring force amplitude k·r_d = {force:.3g} N > structural limit {c.max_spring_force_n:g} N"
             add(np.ones(points.size, dtype=bool), lambda _i: text)
+    if c.cam_contact or c.contact_fatigue:
+        structural = structural_violation_texts(config, vibration_rpm, c.cam_contact, c.contact_fatigue)
+        for row, texts in zip(found, structural, strict=True):
+            row += texts
     return ["; ".join(v) for v in found]
 
 

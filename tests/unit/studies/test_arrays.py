@@ -83,3 +83,21 @@ def test_workers_are_used_only_where_they_keep_80_percent_efficiency() -> None:
     assert not worth_workers(100 * 100, False, 2)  # a level-(a, b) map: ~0.2 s of work, seconds of start-up
     assert not worth_workers(10**9, True, 1)
     assert isinstance(make_backend(None, None, 100 * 100, simulated=False), SerialBackend)
+
+
+def test_structural_constraints_break_the_same_points_as_the_point_path(config: MillConfig) -> None:
+    from millctl.studies.engine import violations
+
+    constraints = ConstraintSpec(law="none", drives=False, cam_contact=True, contact_fatigue=True)
+    rotary = np.full(5, 100.0)
+    vibration = np.array([300.0, 800.0, 1500.0, 2500.0, 4000.0])
+    out = evaluate_arrays(
+        {"rotary_rpm": rotary, "vibration_rpm": vibration}, config, ("follower_jump_margin_rpm",),
+        constraints=constraints,
+    )  # fmt: skip
+    expected = ["; ".join(violations(config, 100.0, float(v), constraints)) for v in vibration]
+    assert out["violations"].tolist() == expected
+    assert out["feasible"].tolist() == [not e for e in expected]
+    jumping = out["follower_jump_margin_rpm"] < 0.0
+    assert jumping.any() and not jumping.all()  # the grid straddles the follower's jump speed
+    assert all("the roller leaves the cam" in out["violations"][i] for i in np.flatnonzero(jumping))
