@@ -10,8 +10,12 @@ is a function ``PointArrays -> FloatArray`` of shape (P,), registered by name in
 * level (b): :meth:`PointArrays.telemetry` — the node telemetry's K cam-phase samples of
   every point from one call of :func:`millctl.physics.kernels.telemetry_batch`, shape (P, K)
   per column of :data:`~millctl.physics.kernels.TELEMETRY` — and :meth:`PointArrays.summary`,
-  the per-revolution summary of :func:`millctl.physics.telemetry.revolution_summary` as arrays
-  (the same formulas, the same numbers to rounding, ``tests/unit/studies/test_arrays.py``).
+  the per-revolution summary of :func:`millctl.physics.telemetry.revolution_summary` as arrays,
+  landings below the impact threshold (:func:`millctl.studies.loads.impact_threshold_j`) not
+  counted; with ``cam_phases`` 0 integrated over the cam phase as
+  :func:`millctl.studies.metrics.cam_phase_summary` does it (K = 8, 16, ... for every point at
+  once, each point kept at the first doubling that changes it by ≤ rtol, the rest refined). The
+  same formulas, the same numbers to rounding (``tests/unit/studies/test_arrays.py``).
 
 Nothing here builds a configuration, a model or a scene per point, and nothing validates per
 point: a group's model was validated once when the group was made
@@ -34,6 +38,8 @@ from millctl.physics.cam import strokes
 from millctl.physics.limits import LimitParams, omega_r_max, vibration_intensity
 from millctl.physics.model import MillModel, Scene
 from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S
+from millctl.studies.loads import impact_loads, impact_threshold_j, structural_metrics
+from millctl.studies.metrics import MAX_CAM_PHASES
 
 FloatArray = NDArray[np.float64]
 ArrayMetric = Callable[["PointArrays"], FloatArray]
@@ -55,11 +61,13 @@ class PointArrays:
     omega_v_rad_s: FloatArray
     """ω_v, the cam motor's speed, of every point (rad/s, ≥ 0)."""
     cam_phases: int = 4
-    """K, the level-(b) samples over one lift cycle."""
+    """K, the level-(b) samples over one lift cycle; 0: integrate over the phase to ``cam_phase_rtol``."""
     revolutions: float = 4.0
     """Length of a level-(c) simulation (revolutions)."""
     seeds: NDArray[np.uint64] | None = None
     """One seed per point for level (c) (:func:`millctl.studies.engine.point_seed`)."""
+    cam_phase_rtol: float = 0.01
+    """Level (b) with ``cam_phases`` 0: the relative change of milling power and detaching share to stop at."""
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @property
@@ -75,6 +83,23 @@ class PointArrays:
             cached = self._cache["limit_params"] = LimitParams.from_config(self.config)
         params: LimitParams = cached
         return params
+
+    @property
+    def impact_threshold_j(self) -> float:
+        """Below this energy a landing is a micro-hop, not an impact (J; :func:`.loads.impact_threshold_j`)."""
+        cached = self._cache.get("impact_threshold_j")
+        if cached is None:
+            cached = self._cache["impact_threshold_j"] = impact_threshold_j(self.model)
+        threshold: float = cached
+        return threshold
+
+    def subset(self, index: NDArray[np.int64], cam_phases: int) -> PointArrays:
+        """The points ``index`` of this mill, sampled at ``cam_phases`` fixed phases (its mill's caches shared)."""
+        shared = {k: v for k, v in self._cache.items() if k in ("limit_params", "impact_threshold_j")}
+        return PointArrays(
+            self.config, self.model, self.omega_r_rad_s[index], self.omega_v_rad_s[index], cam_phases,
+            self.revolutions, None if self.seeds is None else self.seeds[index], self.cam_phase_rtol, shared,
+        )  # fmt: skip
 
     def rows(self, theta0_rad: FloatArray) -> FloatArray:
         """Kernel parameter rows (:data:`~millctl.physics.kernels.PARAMS`) of the points, rod 0 at θ0, α0 = 0."""
@@ -106,6 +131,8 @@ class PointArrays:
 
     def telemetry(self) -> dict[str, FloatArray]:
         """The K samples of every point, one (P, K) array per :data:`~millctl.physics.kernels.TELEMETRY` column."""
+        if self.cam_phases < 1:
+            raise ValueError(f"telemetry needs cam_phases ≥ 1, got {self.cam_phases} (0 integrates: use summary())")
         cached = self._cache.get("telemetry")
         if cached is None:
             start, pinned = self.start_angles()
@@ -117,12 +144,62 @@ class PointArrays:
         return telemetry
 
     def summary(self) -> dict[str, FloatArray]:
-        """:class:`~millctl.physics.telemetry.RevolutionSummary`'s fields as arrays (P,), the same formulas."""
+        """:class:`~millctl.physics.telemetry.RevolutionSummary`'s fields as arrays (P,), the same formulas.
+
+        Also ``cam_phases_used`` and ``cam_phase_error`` (nan at fixed phases), as
+        :func:`millctl.studies.metrics.cam_phase_summary` returns them.
+        """
         cached = self._cache.get("summary")
         if cached is None:
-            cached = self._cache["summary"] = _summary(self)
+            if self.cam_phases >= 1:
+                cached = _summary(self) | {
+                    "cam_phases_used": np.full(self.size, float(self.cam_phases)),
+                    "cam_phase_error": np.full(self.size, math.nan),
+                }
+            else:
+                cached = _integrated(self)
+            self._cache["summary"] = cached
         summary: dict[str, FloatArray] = cached
         return summary
+
+    def structure(self) -> dict[str, FloatArray]:
+        """The level-(a) structural loads of every point (:func:`~millctl.studies.loads.structural_metrics`)."""
+        cached = self._cache.get("structure")
+        if cached is None:
+            cached = self._cache["structure"] = structural_metrics(self.config, self.omega_r_rad_s, self.omega_v_rad_s)
+        loads: dict[str, FloatArray] = cached
+        return loads
+
+
+def _integrated(points: PointArrays) -> dict[str, FloatArray]:
+    """The summary integrated over the cam phase, every point as :func:`~millctl.studies.metrics.cam_phase_summary`.
+
+    K = 8, then 16, 32, ... for the points not yet settled: a point settles at the first doubling
+    that changes its milling power (relative) and its detaching share by ≤ rtol, or at
+    :data:`MAX_CAM_PHASES`; its summary is the finer one, its error that last change.
+    """
+    size = points.size
+    out: dict[str, FloatArray] = {}
+    active = np.arange(size, dtype=np.int64)
+    k = 8
+    coarse = _summary(points.subset(active, k))
+    while active.size:
+        finer = _summary(points.subset(active, 2 * k))
+        k *= 2
+        new, old = finer["impact_power_w"], coarse["impact_power_w"]
+        scale = np.maximum(np.abs(new), np.abs(old))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            error = np.where(scale > 0.0, np.abs(new - old) / np.where(scale > 0.0, scale, 1.0), 0.0)
+        share = np.abs(finer["detach_fraction"] - coarse["detach_fraction"])
+        done = ((error <= points.cam_phase_rtol) & (share <= points.cam_phase_rtol)) | (k >= MAX_CAM_PHASES)
+        settled = active[done]
+        for name, values in finer.items():
+            out.setdefault(name, np.full(size, math.nan))[settled] = values[done]
+        out.setdefault("cam_phases_used", np.zeros(size))[settled] = float(k)
+        out.setdefault("cam_phase_error", np.full(size, math.nan))[settled] = error[done]
+        active = active[~done]
+        coarse = {name: values[~done] for name, values in finer.items()}
+    return out
 
 
 def _mean_shear_pa(model: MillModel, w_r: FloatArray) -> FloatArray:
@@ -156,7 +233,9 @@ def _summary(points: PointArrays) -> dict[str, FloatArray]:
     """revolution_summary over arrays: the samples' circular mean θ_d, p, rate, energy, slip flag."""
     model, w_r = points.model, points.omega_r_rad_s
     t = points.telemetry()
-    found = t["found"] == 1.0
+    moving = w_r >= MIN_OMEGA_R_RAD_S
+    landed = (t["found"] == 1.0) & moving[:, None]
+    found = landed & (t["energy_j"] >= points.impact_threshold_j)  # below it: a micro-hop, not an impact
     count = found.sum(axis=1)
     theta_d, theta_c, flight = t["theta_d_rad"], t["theta_contact_rad"], t["flight_time_s"]
     on_wall = t["on_wall"] == 1.0
@@ -186,7 +265,7 @@ def _summary(points: PointArrays) -> dict[str, FloatArray]:
         theta = np.where(detached, np.arctan2(sums["sin"], sums["cos"]), math.nan)
         flight_mean = np.where(detached, sums["flight"] / count, math.nan)
         wall_share = np.where(detached, sums["wall"] / count, math.nan)
-    slipping = np.isfinite(t["slip_theta_rad"]) & (w_r >= MIN_OMEGA_R_RAD_S)[:, None]
+    slipping = np.isfinite(t["slip_theta_rad"]) & moving[:, None]
     slip_sin = np.where(slipping, np.sin(t["slip_theta_rad"]), 0.0).sum(axis=1)
     slip_cos = np.where(slipping, np.cos(t["slip_theta_rad"]), 0.0).sum(axis=1)
     violated = slipping.any(axis=1)
@@ -204,6 +283,8 @@ def _summary(points: PointArrays) -> dict[str, FloatArray]:
         "wall_impact_fraction": wall_share,
         "no_slip_violated": violated.astype(float),
         "slip_onset_theta_rad": np.where(violated, np.arctan2(slip_sin, slip_cos), math.nan),
+        "slip_fraction": slipping.sum(axis=1) / points.cam_phases,
+        "sub_threshold_fraction": (landed & ~found).sum(axis=1) / points.cam_phases,
     }
 
 
@@ -244,20 +325,58 @@ def _spring_force(points: PointArrays) -> FloatArray:
     return np.full(points.size, points.model.spring_n_per_m * points.model.eccentricity_m)
 
 
-@array_metric("paper_estimate_power_w")
-def _paper_estimate(points: PointArrays) -> FloatArray:
+def _paper_estimate_per_rod(points: PointArrays) -> FloatArray:
+    """The paper's reasoning: one impact per rod and revolution (eq. 18, p = 1) of ½ m |v|² at r0 ω_r (eq. 19)."""
     m, w_r = points.model, points.omega_r_rad_s
     result: FloatArray = w_r / (2.0 * math.pi) * 0.5 * m.rod_mass_kg * (m.r0_m * w_r) ** 2
     return result
 
 
+@array_metric("paper_estimate_power_per_rod_w")
+def _paper_estimate_rod(points: PointArrays) -> FloatArray:
+    return _paper_estimate_per_rod(points)
+
+
+@array_metric("paper_estimate_power_w")
+def _paper_estimate(points: PointArrays) -> FloatArray:
+    result: FloatArray = points.model.n_rods * _paper_estimate_per_rod(points)
+    return result
+
+
+def _structural(name: str) -> ArrayMetric:
+    def load(points: PointArrays) -> FloatArray:
+        return np.asarray(points.structure()[name], dtype=float)
+
+    return load
+
+
+for _name in (
+    "platform_acceleration_peak_m_s2", "spring_force_peak_n", "cam_contact_force_min_n", "cam_contact_force_max_n",
+    "follower_jump_margin_rpm", "cam_contact_pressure_pa", "cam_fatigue_cycles", "shaft_load_peak_n", "bearing_life_h",
+):  # fmt: skip
+    array_metric(_name)(_structural(_name))
+
+
+def _impact_loads(points: PointArrays) -> dict[str, FloatArray]:
+    """Eq. 20 with the impact force at each point's mean impact energy (nan where nothing detaches)."""
+    cached = points._cache.get("impact_loads")
+    if cached is None:
+        s = points.summary()
+        detached = s["detached"] == 1.0
+        loads = impact_loads(points.model, np.where(detached, s["mean_impact_energy_j"], math.nan))
+        cached = points._cache["impact_loads"] = {k: np.where(detached, v, math.nan) for k, v in loads.items()}
+    result: dict[str, FloatArray] = cached
+    return result
+
+
+@array_metric("impact_force_peak_n")
+def _impact_force(points: PointArrays) -> FloatArray:
+    return _impact_loads(points)["impact_force_peak_n"]
+
+
 @array_metric("rod_rod_shear_pa")
 def _rod_rod_shear(points: PointArrays) -> FloatArray:
-    model = points.model
-    weight = model.rod_mass_kg * model.g_m_s2
-    e_star = model.rod_youngs_pa / (2.0 * (1.0 - model.rod_poisson**2))
-    b = math.sqrt(4.0 * weight * 0.5 * model.rod_radius_m / (math.pi * model.rod_length_m * e_star))
-    return np.full(points.size, model.powder_friction * weight / (2.0 * b * model.rod_length_m))
+    return _impact_loads(points)["rod_rod_shear_pa"]
 
 
 def _whole_mill_rate(points: PointArrays) -> FloatArray:
@@ -308,6 +427,21 @@ def _detach_fraction(points: PointArrays) -> FloatArray:
 @array_metric("theta_d_deg")
 def _theta_d(points: PointArrays) -> FloatArray:
     return np.degrees(points.summary()["theta_d_rad"])
+
+
+def _summary_field(name: str) -> ArrayMetric:
+    def field_of(points: PointArrays) -> FloatArray:
+        return points.summary()[name]
+
+    return field_of
+
+
+for _metric, _field in (
+    ("no_slip_violated", "no_slip_violated"), ("slip_fraction", "slip_fraction"),
+    ("micro_hop_fraction", "sub_threshold_fraction"), ("cam_phases_used", "cam_phases_used"),
+    ("cam_phase_error", "cam_phase_error"),
+):  # fmt: skip
+    array_metric(_metric)(_summary_field(_field))
 
 
 __all__ = ["ARRAY_METRICS", "FLIGHT_CAP_S", "ArrayMetric", "PointArrays", "array_metric"]

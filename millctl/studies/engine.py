@@ -18,10 +18,12 @@
   shape (P,), registered with ``@array_metric("name_unit")`` from :mod:`millctl.studies.arrays`
   (the name also listed in :data:`millctl.studies.metrics.METRICS`). It reads the speeds
   (``points.omega_r_rad_s``, ``points.omega_v_rad_s``, rad/s), the group's ``points.model`` and
-  ``points.config``, and the shared, cached levels: ``points.telemetry()`` (level b: the K
-  cam-phase samples of every point, (P, K) arrays, one compiled call) and ``points.summary()``
-  (the per-revolution summary as arrays). A metric without an array form is still evaluated, point by
-  point through :func:`~millctl.studies.metrics.compute_metrics` (correct, ~100× slower).
+  ``points.config``, and the shared, cached levels: ``points.structure()`` (level a: the
+  structural loads), ``points.telemetry()`` (level b at K fixed cam phases: (P, K) arrays, one
+  compiled call) and ``points.summary()`` (the per-revolution summary as arrays, at the K phases or,
+  with ``cam_phases`` 0, integrated over the phase to ``cam_phase_rtol``). Every level-(a, b) metric
+  has an array form; one without (the slip ride, level s; the simulation, level c) is evaluated point
+  by point through :func:`~millctl.studies.metrics.compute_metrics` (correct, ~100× slower).
 
 :func:`evaluate_batch` (what the backends map over batches of :class:`PointTask`) groups its tasks
 and calls :func:`evaluate_arrays`; :func:`evaluate` is one point through the same path. A point's row
@@ -219,27 +221,36 @@ def _violations_arrays(
 
 def _group_metrics(
     points: PointArrays, names: Sequence[str], settings: PointSettings, seeds: Callable[[int], int]
-) -> tuple[dict[str, FloatArray], NDArray[np.int64]]:
-    """The named metrics of one group (array forms; the rest point by point) and the events spent."""
+) -> tuple[dict[str, FloatArray], NDArray[np.int64], dict[int, str]]:
+    """The named metrics of one group (array forms; the rest point by point), events spent, points that failed.
+
+    A point fails where its point-by-point metrics raise :class:`PhysicsInputError` (index → the message).
+    """
     events = np.zeros(points.size, dtype=np.int64)
-    # level (b)'s array forms sample K fixed cam phases: a study that asks for none (0) is left to the point path
-    arrays = [n for n in names if n in ARRAY_METRICS and (METRICS[n].level != "b" or settings.cam_phases >= 1)]
-    if any(METRICS[n].level == "b" for n in arrays):
-        events += settings.cam_phases
+    arrays = [n for n in names if n in ARRAY_METRICS]
     values = {n: np.asarray(ARRAY_METRICS[n](points), dtype=float) for n in arrays}
+    array_phases = np.zeros(points.size, dtype=np.int64)
+    if any(METRICS[n].level == "b" for n in arrays):  # the point path counts level (b) as the cam phases it took
+        array_phases = points.summary()["cam_phases_used"].astype(np.int64)
+        events += array_phases
     rest = tuple(n for n in names if n not in arrays)
+    failed: dict[int, str] = {}
     if rest:
-        extra = np.empty((points.size, len(rest)))
-        rest_levels = {METRICS[n].level for n in rest}
-        array_levels = {METRICS[n].level for n in arrays}
+        extra = np.full((points.size, len(rest)), math.nan)
+        both_b = "b" in {METRICS[n].level for n in rest} and array_phases.any()
         for i in range(points.size):
-            row, spent = compute_metrics(
-                points.config, float(points.omega_r_rad_s[i]), float(points.omega_v_rad_s[i]), rest, settings, seeds(i)
-            )
+            try:
+                row, spent = compute_metrics(
+                    points.config, float(points.omega_r_rad_s[i]), float(points.omega_v_rad_s[i]), rest, settings,
+                    seeds(i),
+                )  # fmt: skip
+            except PhysicsInputError as exc:  # e.g. a slip ride that chatters: this point fails, the rest go on
+                failed[i] = str(exc)
+                continue
             extra[i] = [row[n] for n in rest]
-            events[i] += spent - (settings.cam_phases if "b" in rest_levels and "b" in array_levels else 0)
+            events[i] += spent - (array_phases[i] if both_b else 0)
         values |= {n: extra[:, k] for k, n in enumerate(rest)}
-    return values, events
+    return values, events, failed
 
 
 def evaluate_arrays(
@@ -292,7 +303,7 @@ def evaluate_arrays(
             continue
         group = PointArrays(
             config, model, rpm_to_rad_s(rotary[where]), rpm_to_rad_s(vibration[where]),
-            settings.cam_phases, settings.revolutions,
+            settings.cam_phases, settings.revolutions, cam_phase_rtol=settings.cam_phase_rtol,
         )  # fmt: skip
 
         def seed_of(i: int, where: NDArray[np.int64] = where) -> int:
@@ -301,13 +312,18 @@ def evaluate_arrays(
                 return int(seeds[j])
             return point_seed(seed, {k: _plain(v[j]) for k, v in columns.items()})
 
-        values, events = _group_metrics(group, metrics, settings, seed_of)
+        values, events, failed = _group_metrics(group, metrics, settings, seed_of)
         for name, array in values.items():
             out[name][where] = array
         out["events"][where] = events
         reasons = _violations_arrays(group, rotary[where], vibration[where], constraints)
         out["violations"][where] = reasons
         out["feasible"][where] = [not r for r in reasons]
+        for i, message in failed.items():  # as a mill that cannot exist: no metric, no events, the reason
+            j = int(where[i])
+            for name in metrics:
+                out[name][j] = math.nan
+            out["events"][j], out["feasible"][j], out["violations"][j] = 0, False, message
     return out
 
 

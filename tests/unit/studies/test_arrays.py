@@ -10,6 +10,7 @@ import pytest
 from millctl.config import MillConfig
 from millctl.config.models import LimitLaw
 from millctl.physics.limits import LimitParams, omega_r_max
+from millctl.studies.arrays import ARRAY_METRICS
 from millctl.studies.engine import ConstraintSpec, evaluate_arrays
 from millctl.studies.metrics import DEFAULT_METRICS, PointSettings, compute_metrics
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
@@ -18,17 +19,23 @@ from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 def _close(a: float, b: float) -> bool:
     if math.isnan(a) or math.isnan(b):
         return math.isnan(a) and math.isnan(b)
+    if math.isinf(a) or math.isinf(b):
+        return a == b
     return abs(a - b) <= 1e-12 * max(abs(a), abs(b), 1e-300)
 
 
+@pytest.mark.parametrize("cam_phases", [3, 0], ids=["fixed-3-phases", "integrated"])
 @pytest.mark.parametrize("variant", ["corrected", "paper"])
-def test_every_level_b_metric_agrees_with_the_point_path(config: MillConfig, variant: str) -> None:
+def test_every_level_a_and_b_metric_agrees_with_the_point_path(
+    config: MillConfig, variant: str, cam_phases: int
+) -> None:
     # standstill, pinned (low cam, fast vial), detaching, Γ ≥ 1 and micro-hops all on one grid
     rotary, vibration = np.meshgrid([0.0, 0.5, 5.0, 60.0, 200.0, 330.0], [0.0, 300.0, 800.0, 1500.0], indexing="ij")
     data = config.model_dump(mode="json")
     data["model"]["variant"] = variant
     base = MillConfig.model_validate(data)
-    settings = PointSettings(cam_phases=3)
+    settings = PointSettings(cam_phases=cam_phases)
+    assert set(DEFAULT_METRICS) <= set(ARRAY_METRICS)  # every one compared here has an array form
     out = evaluate_arrays(
         {"rotary_rpm": rotary.ravel(), "vibration_rpm": vibration.ravel()}, base, DEFAULT_METRICS, settings
     )
@@ -36,6 +43,20 @@ def test_every_level_b_metric_agrees_with_the_point_path(config: MillConfig, var
         expected, events = compute_metrics(base, rpm_to_rad_s(r), rpm_to_rad_s(v), DEFAULT_METRICS, settings, 0)
         for name in DEFAULT_METRICS:
             assert _close(float(out[name][i]), expected[name]), (name, r, v, out[name][i], expected[name])
+        assert out["events"][i] == events
+    if cam_phases == 0:  # the integral refined some points further than others, and counted micro-hops apart
+        assert len(set(out["cam_phases_used"].tolist())) > 1
+    assert np.nanmax(out["milling_power_w"]) > 0.0
+
+
+def test_slip_ride_metrics_join_the_array_metrics_point_by_point(config: MillConfig) -> None:
+    names = ("milling_power_w", "slip_impact_fraction", "slip_milling_power_w")
+    settings = PointSettings(cam_phases=0, slip_phases=4)
+    out = evaluate_arrays({"rotary_rpm": np.array([60.0, 200.0]), "vibration_rpm": np.array([800.0, 800.0])},
+                          config, names, settings)  # fmt: skip
+    for i, r in enumerate((60.0, 200.0)):
+        expected, events = compute_metrics(config, rpm_to_rad_s(r), rpm_to_rad_s(800.0), names, settings, 0)
+        assert all(_close(float(out[n][i]), expected[n]) for n in names), (r, {n: out[n][i] for n in names}, expected)
         assert out["events"][i] == events
 
 
@@ -101,3 +122,16 @@ def test_structural_constraints_break_the_same_points_as_the_point_path(config: 
     jumping = out["follower_jump_margin_rpm"] < 0.0
     assert jumping.any() and not jumping.all()  # the grid straddles the follower's jump speed
     assert all("the roller leaves the cam" in out["violations"][i] for i in np.flatnonzero(jumping))
+
+
+def test_a_point_whose_slip_ride_fails_is_reported_and_the_rest_evaluated(config: MillConfig) -> None:
+    # at 110/1000 rpm the slip ride chatters (2000 stick/slip changes): that point, not the study, fails
+    names = ("milling_power_w", "slip_milling_power_w")
+    out = evaluate_arrays(
+        {"rotary_rpm": np.array([110.0, 200.0]), "vibration_rpm": np.array([1000.0, 1000.0])},
+        config, names, PointSettings(slip_phases=4),
+    )  # fmt: skip
+    assert out["feasible"].tolist() == [False, True]
+    assert out["violations"][0].startswith("slip ride chattered") and out["events"][0] == 0
+    assert math.isnan(out["milling_power_w"][0]) and math.isnan(out["slip_milling_power_w"][0])
+    assert out["milling_power_w"][1] > 0.0 and out["slip_milling_power_w"][1] >= 0.0
