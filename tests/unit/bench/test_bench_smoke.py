@@ -194,7 +194,10 @@ def _study_results() -> dict[str, object]:
         "rule_points": {"local": 240, "dask": 480},
     }  # fmt: skip
     return {
-        "arrays": {"points": 10_000, "cpu_s": 0.05, "wall_s": 0.1, "points_per_cpu_s": 2e5},
+        "arrays": {"points": 10_000, "cam_phases": 4, "phases_per_point": 4.0, "cpu_s": 0.05, "wall_s": 0.1,
+                   "points_per_cpu_s": 2e5},
+        "arrays_integrated": {"points": 10_000, "cam_phases": 0, "phases_per_point": 66.4, "cpu_s": 5.0,
+                              "wall_s": 5.5, "points_per_cpu_s": 2e3},
         "runner": {"points": 10_000, "cpu_s": 0.5, "wall_s": 1.0, "points_per_cpu_s": 2e4},
         "offline": {"points": 9, "events": 300, "cpu_s": 1.0, "wall_s": 2.0, "events_per_cpu_s": 300.0},
         "parallel": parallel,
@@ -205,7 +208,9 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     from bench import study
 
     text = "\n".join(study.report(_study_results()))
-    assert "| 100 × 100 map, `evaluate_arrays` | 10,000 | 0.05 s | 0.1 s | 2e+05 |" in text
+    assert "| 100 × 100 map, `evaluate_arrays`, 4 cam phases | 10,000 | 0.05 s | 0.1 s | 2e+05 |" in text
+    integrated = "| the same integrated over the cam phase to 1 % (66 phases a point) | 10,000 | 5 s | 5.5 s | 2e+03 |"
+    assert integrated in text
     assert "| 2 local processes | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 240 |" in text
     assert "| 2-worker local Dask cluster | 7 s | 5 s | 1.40× | 70% | 3 s | 480 |" in text
     assert "N·c ≥ 4·w·S" in text and "two workers pay from 240 / 480 level-(c) points" in text
@@ -225,7 +230,11 @@ def test_every_issue_40_target_is_printed_with_measured_target_and_met() -> None
     assert "| batch kernel, one rod's event (events/s/core) | 6e+05 | ≥ 5e+05 | yes |" in text
     assert "| batch kernel, a whole six-rod scene (scenes/s/core) | 1.5e+05 | ≥ 2e+05 | **no** |" in text
     assert "| one event through the public API (µs) | 2.5 | ≤ 3 | yes |" in text
-    assert "| 100×100 level-(b) map (points/s/core) | 2e+05 | ≥ 1e+05 | yes |" in text
+    assert "| 100×100 level-(b) map, 4 cam phases (points/s/core) | 2e+05 | ≥ 1e+05 | yes |" in text
+    assert (
+        "| 100×100 level-(b) map, integrated over the cam phase to 1 % (points/s/core) | 2e+03 | ≥ 1e+05 | **no** |"
+        in text
+    )
     assert "| parallel efficiency, 2-worker local Dask cluster (share) | 0.7 | ≥ 0.8 | **no** |" in text
     assert "| level (c) simulation (events/s/core) | 300 | ≥ 1e+05 | **no** |" in text
     assert "compiled 3.50; study 4.25" in text
