@@ -182,9 +182,12 @@ def _integrated(points: PointArrays) -> dict[str, FloatArray]:
     out: dict[str, FloatArray] = {}
     active = np.arange(size, dtype=np.int64)
     k = 8
-    coarse = _summary(points.subset(active, k))
+    first = points.subset(active, k)
+    coarse, samples = _summary(first), first.telemetry()
     while active.size:
-        finer = _summary(points.subset(active, 2 * k))
+        fine = points.subset(active, 2 * k)
+        fine._cache["telemetry"] = samples = _doubled(fine, samples)
+        finer = _summary(fine)
         k *= 2
         new, old = finer["impact_power_w"], coarse["impact_power_w"]
         scale = np.maximum(np.abs(new), np.abs(old))
@@ -199,7 +202,26 @@ def _integrated(points: PointArrays) -> dict[str, FloatArray]:
         out.setdefault("cam_phase_error", np.full(size, math.nan))[settled] = error[done]
         active = active[~done]
         coarse = {name: values[~done] for name, values in finer.items()}
+        samples = {name: values[~done] for name, values in samples.items()}
     return out
+
+
+def _doubled(fine: PointArrays, coarse: dict[str, FloatArray]) -> dict[str, FloatArray]:
+    """The 2K samples of ``fine`` from its points' K samples and one kernel call for the K odd phases.
+
+    Phase j of 2K is 2πj/(2K): the even ones are the K phases' (bit for bit), the odd ones new.
+    """
+    start, pinned = fine.start_angles()
+    half = fine.cam_phases // 2
+    odd = kernels.telemetry_batch(
+        fine.rows(start), start, pinned, half, FLIGHT_CAP_S, fine.model.powder_friction, odd_of_double=True
+    )
+    both: dict[str, FloatArray] = {}
+    for column, name in enumerate(kernels.TELEMETRY):
+        table = np.empty((fine.size, fine.cam_phases))
+        table[:, 0::2], table[:, 1::2] = coarse[name], odd[:, :, column]
+        both[name] = table
+    return both
 
 
 def _mean_shear_pa(model: MillModel, w_r: FloatArray) -> FloatArray:

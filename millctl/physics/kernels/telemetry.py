@@ -87,10 +87,12 @@ def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
+def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work, stride):  # type: ignore[no-untyped-def]
     """The K telemetry samples of one scene into ``out`` (K rows of :data:`TELEMETRY`), no allocation.
 
     ``work``: (event row, _scratch, scene row, bottom scene row, slip rows, slip state) from :func:`_telemetry_work`.
+    ``stride`` 2: the K odd phases 2π(2k + 1)/(2K) of 2K instead (the even ones are the K phases'), so a
+    doubling of K computes only the new samples, each bit for bit the sample of the 2K call.
     """
     ev, scratch, p, pb, slip_tr, slip_st = work
     out[:, :] = math.nan
@@ -98,7 +100,7 @@ def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, wo
     lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
     for k in range(phases):
         p[:] = p_base
-        p[_TH0], p[_A0] = theta_start, _TWO_PI * k / phases
+        p[_TH0], p[_A0] = theta_start, _TWO_PI * (stride * k + stride - 1) / (stride * phases)
         arc_end = rev
         if pinned:
             out[k, 0], out[k, 1] = 0.0, 0.0
@@ -138,7 +140,7 @@ def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
 @njit(cache=True)
 def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
     out = np.empty((phases, len(TELEMETRY)))
-    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])))
+    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])), 1)
     return out
 
 
@@ -163,11 +165,11 @@ def telemetry_samples(
 
 
 @njit(cache=True)
-def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu):  # type: ignore[no-untyped-def]
+def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu, stride):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
     work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
     for s in range(rows.shape[0]):
-        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work)
+        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work, stride)
     return out
 
 
@@ -178,18 +180,24 @@ def telemetry_batch(
     cam_phases: int,
     flight_cap_s: float,
     friction: float,
+    odd_of_double: bool = False,
 ) -> FloatArray:
     """:func:`telemetry_samples` of many scenes in one compiled call: shape (scenes, K, len(TELEMETRY)).
 
     ``rows`` (scenes, len(PARAMS)); ``theta_start_rad`` and ``pinned`` one per scene. The
     design studies' level (b) (:mod:`millctl.studies.arrays`): no Python per scene.
+    ``odd_of_double``: the K odd phases of 2K (2π(2k + 1)/(2K)); with the K phases' samples
+    interleaved, exactly the 2K call's (the studies' cam-phase integral doubles K this way).
     """
     table = np.ascontiguousarray(rows, dtype=np.float64)
     if table.ndim != 2 or table.shape[1] != len(PARAMS):
         raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}), got {table.shape}")
     start = np.ascontiguousarray(theta_start_rad, dtype=np.float64).reshape(table.shape[0])
     flags = np.ascontiguousarray(pinned, dtype=np.bool_).reshape(table.shape[0])
-    result: FloatArray = _telemetry_batch(table, start, flags, int(cam_phases), float(flight_cap_s), float(friction))
+    stride = 2 if odd_of_double else 1
+    result: FloatArray = _telemetry_batch(
+        table, start, flags, int(cam_phases), float(flight_cap_s), float(friction), stride
+    )
     return result
 
 
