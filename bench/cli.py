@@ -7,7 +7,9 @@ Examples::
     python -m bench --json results.json --write-docs  # full run, then docs/benchmarks.md and docs/img/
     python -m bench --from-json results.json --write-docs   # regenerate the document only
 
-Progress goes to stderr, the report (markdown) to stdout.
+Progress goes to stderr, the report (markdown) to stdout, issue 40's targets (measured / target / met)
+at its end. ``--write-docs`` refuses a run made on a loaded host (:mod:`bench.targets`, exit code 1):
+the host's load is recorded at the start of every piece and printed under every table.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench import compiled, levels, node_budget, plots, report, safety_timing, study, work_precision
+from bench import compiled, levels, node_budget, plots, report, safety_timing, study, targets, work_precision
 from bench.common import corrected_model, loadavg_now, machine
 from bench.options import PIECES, add_options
 from bench.scenes import scene_set
@@ -57,26 +59,33 @@ def run(args: argparse.Namespace, argv: Sequence[str]) -> dict[str, Any]:
         "command": "python -m bench " + shlex.join(argv) if argv else "python -m bench",
         "quick": args.quick,
         "machine": machine(),
+        "loads": {},
     }
-    if "work-precision" in only:
+
+    def starting(piece: str) -> bool:
+        if piece in only:
+            res["loads"][piece] = targets.load_now()
+        return piece in only
+
+    if starting("work-precision"):
         lhs = args.lhs if args.lhs is not None else (4 if args.quick else 32)
         scenes = scene_set(corrected_model(), lhs)
         _progress(f"work-precision: {len(scenes)} scenes")
         res["work_precision"] = work_precision.run(scenes, args.quick, _progress)
-    if "compiled" in only:
+    if starting("compiled"):
         res["compiled"] = compiled.run(args.quick, _progress)
-    if "levels" in only:
+    if starting("levels"):
         _progress("levels of detail")
         res["levels"] = levels.run(args.quick)
-    if "node" in only:
+    if starting("node"):
         _progress("node tick budget")
         res["node_budget"] = node_budget.run(args.quick)
-    if "safety" in only:
+    if starting("safety"):
         _progress("safety timing (hil tier) and bus load")
         res["safety_timing"] = safety_timing.run(args.quick, args.trials, _progress)
-    if "study" in only:
+    if starting("study"):
         _progress("design-study throughput (100 x 100 map; --quick 10 x 10)")
-        res["study"] = study.run(args.quick)
+        res["study"] = study.run(args.quick, _progress)
     res["duration_s"] = time.perf_counter() - start
     res.update(report.issue17_figures(res))
     res["loadavg_end"] = loadavg_now()
@@ -115,6 +124,10 @@ def run_parsed(args: argparse.Namespace, argv: Sequence[str]) -> int:
             _progress(f"wrote {args.json}")
     if args.plots:
         _plot(res, Path(args.plots))
+    if args.write_docs and (why := targets.loaded(res)):
+        print(report.render(res), end="")
+        _progress(f"not writing {DOCS}: {why}")
+        return 1
     if args.write_docs:
         if not args.plots:
             _plot(res, DOCS.parent / "img")

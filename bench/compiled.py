@@ -26,6 +26,7 @@ import numpy as np
 from bench.common import bench_config, corrected_model
 from millctl.physics.agreement import compare, random_scenes
 from millctl.physics.batch import SceneBatch, first_impacts
+from millctl.physics.methods import first_impact
 from millctl.safety import Envelope
 
 SEED = 17
@@ -43,9 +44,26 @@ _FIRST_CALL = (
 
 
 def _cpu_and_wall(fn: Callable[[], object]) -> tuple[float, float]:
-    cpu, wall = time.process_time(), time.perf_counter()
+    cpu, wall = time.thread_time(), time.perf_counter()
     fn()
-    return time.process_time() - cpu, time.perf_counter() - wall
+    return time.thread_time() - cpu, time.perf_counter() - wall
+
+
+def public_api(count: int, repeats: int = 5) -> dict[str, Any]:
+    """One event through the public API, ``methods.first_impact(scene, "exact")``, CPU µs per call (median)."""
+    scenes = random_scenes(corrected_model(), count, SEED)
+    first_impact(scenes[0], "exact")  # load the compiled code
+
+    def loop() -> None:
+        for scene in scenes:
+            first_impact(scene, "exact")
+
+    runs = [_cpu_and_wall(loop) for _ in range(repeats)]
+    return {
+        "scenes": count,
+        "us_per_event": float(np.median([c for c, _ in runs])) / count * 1e6,
+        "us_per_event_wall": float(np.median([w for _, w in runs])) / count * 1e6,
+    }
 
 
 def batch(count: int, repeats: int = 5) -> dict[str, Any]:
@@ -126,6 +144,8 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     out: dict[str, Any] = {}
     progress("compiled: batch throughput")
     out["batch"] = batch(1000 if quick else 10_000)
+    progress("compiled: one event through the public API")
+    out["public_api"] = public_api(300 if quick else 3000)
     progress("compiled: agreement with the reference engine")
     out["agreement"] = agreement(300 if quick else 10_000)
     out["interlock"] = interlock(20_000, 5)

@@ -8,6 +8,7 @@ text after a run.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 PLOT_REL = "img/work-precision.png"
@@ -48,8 +49,8 @@ def _header(res: dict[str, Any]) -> list[str]:
         f"Machine: `{m['hostname']}`, {m['platform']}, {m['cpu_count']} CPUs, Python {m['python']}, "
         f"numpy {m['numpy']}; load average (1/5/15 min) {m['loadavg']} at the start and "
         f"{res.get('loadavg_end', '—')} at the end ({m['time_utc']}). The box is shared with other sessions, "
-        "so absolute times are noisy (±2× is common); the figures that make a claim are ratios measured "
-        "in the same run (`time.perf_counter`, repeats, medians).",
+        "so absolute times are noisy (±2× is common); the figures that make a claim are rates from the CPU time "
+        "of the measuring thread (`time.thread_time`) or ratios of runs in the same process, repeats, medians.",
         "",
     ]
 
@@ -131,7 +132,7 @@ def _issue17(res: dict[str, Any]) -> list[str]:
         out += [
             "",
             f"Batch: {b['scenes']} random scenes (`millctl.physics.agreement.random_scenes`, seed 17), one thread, "
-            f"timed by this process's CPU time (`time.process_time`, median of {b.get('repeats', 3)} runs) so that "
+            f"timed by this thread's CPU time (`time.thread_time`, median of {b.get('repeats', 3)} runs) so that "
             "other sessions' load on this shared machine does not count; "
             f"one-rod events {g(b['one']['cpu_s'])} s CPU / {g(b['one']['wall_s'])} s wall "
             f"({g(b['one']['events_per_wall_s'])} per wall second on this loaded machine), whole scenes "
@@ -462,22 +463,30 @@ def _safety(st: dict[str, Any]) -> list[str]:
 
 
 def render(res: dict[str, Any]) -> str:
-    """The whole document for a results dict (sections absent from the run are left out)."""
-    out = _header(res)
-    out += _issue17(res)
-    if "work_precision" in res:
-        out += _headline(res["work_precision"], res["command"])
-        out += _wp_tables(res["work_precision"])
-    if "levels" in res:
-        out += _levels(res["levels"])
-    if "node_budget" in res:
-        out += _node(res["node_budget"])
-    if "safety_timing" in res:
-        out += _safety(res["safety_timing"])
-    if "study" in res:
-        from bench.study import report as study_report
+    """The whole document for a results dict (sections absent from the run are left out).
 
-        out += study_report(res["study"])
+    Every section ends with the host's load at the start of the piece that produced it (:mod:`bench.targets`).
+    """
+    from bench.study import report as study_report
+    from bench.targets import load_line
+    from bench.targets import report as targets_report
+
+    out = _header(res)
+    sections: list[tuple[str, bool, Callable[[], list[str]]]] = [
+        ("compiled", True, lambda: _issue17(res)),
+        ("work-precision", "work_precision" in res,
+         lambda: _headline(res["work_precision"], res["command"]) + _wp_tables(res["work_precision"])),
+        ("levels", "levels" in res, lambda: _levels(res["levels"])),
+        ("node", "node_budget" in res, lambda: _node(res["node_budget"])),
+        ("safety", "safety_timing" in res, lambda: _safety(res["safety_timing"])),
+        ("study", "study" in res, lambda: study_report(res["study"])),
+    ]  # fmt: skip
+    for piece, present, lines in sections:
+        if present:
+            out += lines()
+            if piece in res.get("loads", {}):
+                out += [load_line(res, piece), ""]
+    out += targets_report(res)
     return "\n".join(out).rstrip() + "\n"
 
 

@@ -1,33 +1,44 @@
-"""Design-study throughput: points/s and events/s per core for a 100 × 100 map of (ω_r, ω_v).
+"""Design-study throughput (issue 40): the array path, the whole runner, and what workers gain.
 
-The map is ω_r 20–300 rpm × ω_v 200–1200 rpm on Set A (corrected), every level-(a)
-and level-(b) metric (the heat-map study of docs/studies.md), run by
-``millctl.studies`` on every local core. The baseline, measured in the same run,
-is one in-process worker on a strided 10 × 10 subset of the same map: the ratio
-of per-core rates is the pool's parallel efficiency. Level (c) (the multi-rod
-simulation, one revolution a point) is timed on a 3 × 3 grid of ω_r 120–200 ×
-ω_v 400–800 rpm, one worker (at a few rpm the model's micro-hops make thousands
-of events per revolution).
-An event is one detachment-and-first-contact sample of a level-(b) summary
-(``cam_phases`` per point) or one detachment or impact of the simulation.
-``--quick`` runs the 10 × 10 subset in place of the full map.
+* **arrays**: :func:`millctl.studies.engine.evaluate_arrays` on a 100 × 100 map of
+  (ω_r 20–300 rpm, ω_v 200–1200 rpm) on Set A (corrected), every level-(a) and level-(b)
+  metric at 4 fixed cam phases; points per CPU second of this thread (``time.thread_time``,
+  median of 3); and once more integrated over the cam phase to 1 % (the studies' default).
+* **runner**: the same map through :class:`~millctl.studies.StudyRunner` in this process (rows,
+  constraints, the in-memory store), CPU and wall time.
+* **parallel**: a study large enough to need workers — level (c), the multi-rod simulation,
+  on a grid of ω_r 120–200 × ω_v 400–800 rpm — on one worker and on two (local processes, and a
+  2-worker local Dask cluster), **alternated**: serial, pool, serial, pool …, the pool already
+  started and warm; efficiency = median serial time / (2 × median pool time). The pool's start-up
+  S is timed apart; with c the serial cost of a point, a study of N points keeps ≥ 80 % efficiency
+  on w workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`.
+* **offline**: level (c) events per CPU second, one worker.
+
+``--quick`` shrinks every grid.
 """
 
 from __future__ import annotations
 
+import statistics
 import time
+from collections.abc import Callable
 from typing import Any
+
+import numpy as np
 
 from bench.common import bench_config
 from millctl.studies import SerialBackend, Study, StudyRunner
-from millctl.studies.backends import Backend, LocalBackend, local_cores
+from millctl.studies.backends import Backend, DaskBackend, LocalBackend
+from millctl.studies.engine import evaluate_arrays
+from millctl.studies.metrics import DEFAULT_METRICS, PointSettings
 
 MAP = {"rotary_rpm": (20.0, 300.0), "vibration_rpm": (200.0, 1200.0)}
 """The (ω_r, ω_v) ranges of the map (rpm)."""
-
-
 OFFLINE = {"rotary_rpm": (120.0, 200.0), "vibration_rpm": (400.0, 800.0)}
 """Level (c) is timed away from the micro-hops of a few rpm (thousands of events per revolution)."""
+SIM_METRICS = ["impact_energy_p10_j", "impact_energy_p90_j", "sim_impact_rate_hz"]
+FIXED_CAM_PHASES = 4
+"""The level-(b) map of issue 40's target: 4 fixed cam phases a point (the integral to 1 % is timed beside it)."""
 
 
 def _study(
@@ -37,80 +48,185 @@ def _study(
     data: dict[str, Any] = {
         "study": {"name": f"{num} x {num} map", "variant": "corrected", "seed": 1},
         "parameters": parameters,
-        "metrics": {"revolutions": revolutions, **({"names": metrics} if metrics else {})},
+        "metrics": {
+            "revolutions": revolutions, "cam_phases": FIXED_CAM_PHASES, **({"names": metrics} if metrics else {}),
+        },
         "constraints": {"law": "corrected-best-phase"},
-        "objective": {"maximize": "dose_rate_j_g_s"},
+        "objective": {"maximize": metrics[0] if metrics else "dose_rate_j_g_s"},
     }
     return Study.model_validate(data)
 
 
-def _timed(study: Study, backend: Backend) -> dict[str, Any]:
-    runner = StudyRunner(study, bench_config(), "bench")
-    start = time.perf_counter()
-    result = runner.run(backend)
-    elapsed = time.perf_counter() - start
-    events = sum(int(r["events"]) for r in result.rows)
+def _cpu_wall(fn: Callable[[], Any]) -> tuple[float, float, Any]:
+    cpu, wall = time.thread_time(), time.perf_counter()
+    value = fn()
+    return time.thread_time() - cpu, time.perf_counter() - wall, value
+
+
+def arrays(num: int, repeats: int = 3, cam_phases: int = FIXED_CAM_PHASES) -> dict[str, Any]:
+    """The level-(a, b) map through evaluate_arrays: points per CPU second of this thread.
+
+    ``cam_phases``: K fixed cam phases a point, or 0 to integrate over the phase to 1 % (the
+    studies' default); ``phases_per_point`` is the mean K a point settled at (the integral
+    computed 8 + 16 + … + K samples for it).
+    """
+    (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
+    rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, num), np.linspace(lo_v, hi_v, num), indexing="ij")
+    points = {"rotary_rpm": rotary.ravel(), "vibration_rpm": vibration.ravel()}
+    config = bench_config()
+    settings = PointSettings(cam_phases=cam_phases)
+    evaluate_arrays({k: v[:4] for k, v in points.items()}, config, DEFAULT_METRICS, settings)  # load the compiled code
+    runs = [_cpu_wall(lambda: evaluate_arrays(points, config, DEFAULT_METRICS, settings)) for _ in range(repeats)]
+    cpu = statistics.median(r[0] for r in runs)
+    wall = statistics.median(r[1] for r in runs)
+    phases = float(np.mean(runs[0][2]["cam_phases_used"]))
+    return {
+        "points": num * num, "cam_phases": cam_phases, "phases_per_point": phases,
+        "cpu_s": cpu, "wall_s": wall, "points_per_cpu_s": num * num / cpu,
+    }  # fmt: skip
+
+
+def runner(num: int) -> dict[str, Any]:
+    """The same map through the whole study runner, in this process."""
+    study = _study(num)
+    cpu, wall, result = _cpu_wall(lambda: StudyRunner(study, bench_config(), "bench").run(SerialBackend()))
     points = len(result.rows)
-    return {
-        "points": points,
-        "events": events,
-        "workers": backend.workers,
-        "backend": backend.name,
-        "elapsed_s": elapsed,
-        "points_per_s": points / elapsed,
-        "events_per_s": events / elapsed,
-        "points_per_s_per_core": points / elapsed / backend.workers,
-        "events_per_s_per_core": events / elapsed / backend.workers,
-    }
+    return {"points": points, "cpu_s": cpu, "wall_s": wall, "points_per_cpu_s": points / cpu}
 
 
-def run(quick: bool) -> dict[str, Any]:
-    """Time the map on every core, the serial baseline, and level (c)."""
-    baseline = _timed(_study(10), SerialBackend())
-    cores = local_cores()
-    pool: Backend = SerialBackend() if cores == 1 else LocalBackend(cores)
-    try:
-        mapped = _timed(_study(10 if quick else 100), pool)
-    finally:
-        pool.close()
-    sim_metrics = ["impact_energy_p10_j", "impact_energy_p90_j", "sim_impact_rate_hz"]
-    offline = _timed(_study(3, sim_metrics, ranges=OFFLINE), SerialBackend())
-    return {
-        "map": mapped,
-        "baseline": baseline,
-        "offline": offline,
-        "parallel_efficiency": mapped["points_per_s_per_core"] / baseline["points_per_s_per_core"],
-        "speedup_vs_one_worker": mapped["points_per_s"] / baseline["points_per_s"],
-    }
+def _run_s(study: Study, backend: Backend) -> float:
+    start = time.perf_counter()
+    StudyRunner(study, bench_config(), "bench").run(backend)
+    return time.perf_counter() - start
+
+
+def _paired(study: Study, pool: Backend, pairs: int) -> dict[str, Any]:
+    serial, parallel = [], []
+    for _ in range(pairs):
+        serial.append(_run_s(study, SerialBackend()))
+        parallel.append(_run_s(study, pool))
+    s, p = statistics.median(serial), statistics.median(parallel)
+    return {"serial_s": serial, "pool_s": parallel, "efficiency": s / (pool.workers * p), "speedup": s / p}
+
+
+def _local_pool(workers: int) -> tuple[Backend, Callable[[], None]]:
+    pool = LocalBackend(workers)
+    return pool, pool.close
+
+
+def _dask_pool(workers: int) -> tuple[Backend, Callable[[], None]]:
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+    client = Client(cluster)
+    backend = DaskBackend(client=client)
+
+    def close() -> None:
+        client.close()
+        cluster.close()
+
+    return backend, close
+
+
+def parallel(num: int, pairs: int) -> dict[str, Any]:
+    """Serial against two workers, alternated, on a level-(c) study; the pools' start-up apart."""
+    study = _study(num, SIM_METRICS, ranges=OFFLINE)
+    warm = _study(2, SIM_METRICS, ranges=OFFLINE)
+    out: dict[str, Any] = {"points": num * num}
+    for key in ("local", "dask"):
+        started = time.perf_counter()
+        pool, close = _local_pool(2) if key == "local" else _dask_pool(2)
+        try:
+            _run_s(warm, pool)  # start and warm the workers (imports, compiled code)
+            startup_s = time.perf_counter() - started
+            out[key] = _paired(study, pool, pairs) | {"startup_s": startup_s}
+        finally:
+            close()
+    serial_s = statistics.median(out["local"]["serial_s"])
+    out["per_point_s"] = serial_s / (num * num)
+    out["rule_points"] = {k: worth_workers_rule(out["per_point_s"], out[k]["startup_s"], 2) for k in ("local", "dask")}
+    return out
+
+
+def worth_workers_rule(per_point_s: float, startup_s: float, workers: int) -> int:
+    """The fewest points for which ``workers`` workers keep ≥ 80 % efficiency: N c ≥ 4 w S."""
+    return int(np.ceil(4.0 * workers * startup_s / per_point_s))
+
+
+def offline(num: int) -> dict[str, Any]:
+    """Level (c) events per CPU second of this thread, one worker."""
+    study = _study(num, SIM_METRICS, ranges=OFFLINE)
+    cpu, wall, result = _cpu_wall(lambda: StudyRunner(study, bench_config(), "bench").run(SerialBackend()))
+    events = sum(int(r["events"]) for r in result.rows)
+    return {"points": num * num, "events": events, "cpu_s": cpu, "wall_s": wall, "events_per_cpu_s": events / cpu}
+
+
+def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[str, Any]:
+    """Every figure of this piece."""
+    progress("study: the level-(b) map as arrays")
+    out: dict[str, Any] = {"arrays": arrays(30 if quick else 100)}
+    progress("study: the level-(b) map as arrays, integrated over the cam phase to 1 %")
+    out["arrays_integrated"] = arrays(30 if quick else 100, 1, cam_phases=0)
+    progress("study: the map through the runner")
+    out["runner"] = runner(30 if quick else 100)
+    progress("study: level (c), one worker")
+    out["offline"] = offline(3)
+    progress("study: parallel efficiency, alternated serial and two workers (local, Dask)")
+    out["parallel"] = parallel(6 if quick else 24, 1 if quick else 3)
+    return out
 
 
 def report(st: dict[str, Any]) -> list[str]:
     """The benchmark document's section."""
-    m, b, o = st["map"], st["baseline"], st["offline"]
-
-    def row(label: str, r: dict[str, Any]) -> str:
-        return (
-            f"| {label} | {r['points']:,} | {r['backend']} × {r['workers']} | {r['elapsed_s']:.1f} s "
-            f"| {r['points_per_s']:.3g} | {r['points_per_s_per_core']:.3g} | {r['events_per_s_per_core']:.3g} |"
-        )
-
-    return [
+    a, r, o, p = st["arrays"], st["runner"], st["offline"], st["parallel"]
+    side = round(a["points"] ** 0.5)
+    integrated = [
+        f"| the same integrated over the cam phase to 1 % ({i['phases_per_point']:.0f} phases a point) "
+        f"| {i['points']:,} | {i['cpu_s']:.3g} s | {i['wall_s']:.3g} s | {i['points_per_cpu_s']:.3g} |"
+        for i in [st[k] for k in ("arrays_integrated",) if k in st]
+    ]
+    lines = [
         "## 4. Design-study throughput",
         "",
-        "`millctl study` on Set A (corrected), ω_r 20–300 rpm × ω_v 200–1200 rpm, the level-(a) and level-(b) "
-        "metrics of the heat-map study (bench/study.py). An event is one detachment-and-first-contact sample "
-        "(level b) or one detachment or impact (level c).",
+        "Set A (corrected), ω_r 20–300 rpm × ω_v 200–1200 rpm, every level-(a) and level-(b) metric "
+        "(bench/study.py). CPU time of the measuring thread (`time.thread_time`).",
         "",
-        "| run | points | backend | time | points/s | points/s per core | events/s per core |",
+        "| run | points | CPU | wall | points per CPU second |",
+        "|---|---|---|---|---|",
+        f"| {side} × {side} map, `evaluate_arrays`, {a['cam_phases']} cam phases | {a['points']:,} "
+        f"| {a['cpu_s']:.3g} s | {a['wall_s']:.3g} s | {a['points_per_cpu_s']:.3g} |",
+        *integrated,
+        f"| the same through `StudyRunner` (rows, constraints, store) | {r['points']:,} | {r['cpu_s']:.3g} s "
+        f"| {r['wall_s']:.3g} s | {r['points_per_cpu_s']:.3g} |",
+        f"| level (c), {o['points']} points, one worker | {o['points']} | {o['cpu_s']:.3g} s | {o['wall_s']:.3g} s "
+        f"| {o['events_per_cpu_s']:.3g} events/s |",
+        "",
+        f"Parallel efficiency on a level-(c) study of {p['points']} points (serial and two workers alternated, "
+        "medians of the wall times, workers started and warm):",
+        "",
+        "| workers | serial | two workers | speed-up | efficiency | start-up S | fewest points for ≥ 80 % |",
         "|---|---|---|---|---|---|---|",
-        row(f"map {round(m['points'] ** 0.5)} × {round(m['points'] ** 0.5)}", m),
-        row("baseline 10 × 10, one worker", b),
-        row("level (c) 3 × 3 (ω_r 120–200, ω_v 400–800, 1 revolution), one worker", o),
-        "",
-        f"All cores against one worker: {st['speedup_vs_one_worker']:.3g}× the points/s; per-core efficiency "
-        f"{st['parallel_efficiency']:.0%} (the pool's start-up and the machine's load included).",
-        "",
     ]
+    for key, label in (("local", "2 local processes"), ("dask", "2-worker local Dask cluster")):
+        q = p[key]
+        lines.append(
+            f"| {label} | {statistics.median(q['serial_s']):.3g} s | {statistics.median(q['pool_s']):.3g} s "
+            f"| {q['speedup']:.2f}× | {q['efficiency']:.0%} | {q['startup_s']:.2g} s | {p['rule_points'][key]:,} |"
+        )
+    lines += ["", rule_text(p), ""]
+    return lines
 
 
-__all__ = ["MAP", "OFFLINE", "report", "run"]
+def rule_text(p: dict[str, Any]) -> str:
+    """The printed rule for when a study is too small to gain from workers."""
+    c = p["per_point_s"]
+    return (
+        f"Rule: w workers keep ≥ 80 % efficiency when N·c ≥ 4·w·S (N points, c the serial cost of a point, S the "
+        f"pool's start-up). Here c = {c * 1e3:.3g} ms for a level-(c) point, S = {p['local']['startup_s']:.2g} s "
+        f"(local) / {p['dask']['startup_s']:.2g} s (Dask): two workers pay from "
+        f"{p['rule_points']['local']:,} / {p['rule_points']['dask']:,} level-(c) points; a level-(a, b) study costs "
+        "~10⁻⁵ s a point and gains from workers only past ~10⁶ points — run it with --workers 1."
+    )
+
+
+__all__ = ["MAP", "OFFLINE", "arrays", "offline", "parallel", "report", "rule_text", "run", "runner"]

@@ -20,8 +20,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser = subparsers.add_parser("recipe", help="check, plan and run milling recipes")
     sub = parser.add_subparsers(dest="recipe_command", metavar="ACTION", required=True)
     check = sub.add_parser(
-        "check", help="validate a recipe (exit 1 when invalid) and pre-flight it against the envelope "
-        "(exit 2 when refused, as every refusal)"
+        "check",
+        help="validate a recipe (exit 1 when invalid) and pre-flight it against the envelope "
+        "(exit 2 when refused, as every refusal)",
     )
     check.add_argument("--json", action="store_true", help="machine-readable output")
     check.add_argument("file", help="the recipe (TOML)")
@@ -93,7 +94,8 @@ def plan_as_data(loaded: Any, plan: RecipePlan) -> dict[str, Any]:
                 "min_margin_rpm": None if math.isinf(s.min_margin_rpm) else s.min_margin_rpm,
                 "note": s.note,
                 "detached": s.physics.detached if s.physics else None,
-                "impact_rate_hz": s.physics.impact_rate_hz if s.physics else None,
+                "impact_rate_mill_hz": _mill_rate(plan, s),
+                "impact_rate_per_rod_hz": _per_rod(_mill_rate(plan, s), plan.n_rods),
                 "impact_energy_mj": s.physics.mean_impact_energy_j * 1e3 if s.physics else None,
                 "dose_kj_g": s.dose_kj_g,
                 "dose_target_kj_g": s.dose_target_kj_g,
@@ -121,7 +123,8 @@ def _plan(args: argparse.Namespace) -> int:
         "ω_v rpm",
         "furnace °C",
         "min margin rpm",
-        "impacts/s",
+        "impacts/s mill",
+        "impacts/s rod",
         "energy mJ",
         "dose kJ/g",
         "note",
@@ -138,18 +141,34 @@ def _plan(args: argparse.Namespace) -> int:
             f"{s['vibration_rpm']:.1f}",
             "off" if s["furnace_c"] is None else f"{s['furnace_c']:.0f}",
             "standstill" if s["min_margin_rpm"] is None else f"{s['min_margin_rpm']:.1f}",
-            _physics_cell(s["detached"], s["impact_rate_hz"], "{:.1f}"),
+            _physics_cell(s["detached"], s["impact_rate_mill_hz"], "{:.1f}"),
+            _physics_cell(s["detached"], s["impact_rate_per_rod_hz"], "{:.2f}"),
             _physics_cell(s["detached"], s["impact_energy_mj"], "{:.2f}"),
             _dose_cell(s["dose_kj_g"], s["dose_target_kj_g"]),
             s["note"],
         )
     table.caption = (
         f"final stop {hms(plan.stop.duration_s)}; total {hms(plan.total_s)} (open-ended steps not counted); "
-        f"expected dose {plan.total_dose_kj_g:.3g} kJ/g of {plan.powder_charge_g:g} g powder"
+        f"expected dose {plan.total_dose_kj_g:.3g} kJ/g of {plan.powder_charge_g:g} g powder, whole mill "
+        f"({plan.n_rods} rods: impacts/s mill = {plan.n_rods} × impacts/s rod)"
     )
     stdout_console().print(table)
     stderr_console().print(f"{loaded.source}: sha256 {loaded.sha256[:16]}")
     return int(ExitCode.OK)
+
+
+def _mill_rate(plan: RecipePlan, step: Any) -> float | None:
+    """The whole mill's impact rate at a step (Hz): the one its dose is computed with (physics.dose)."""
+    from millctl.config import ModelVariant
+    from millctl.physics.dose import whole_mill_rate_hz
+
+    if step.physics is None:
+        return None
+    return whole_mill_rate_hz(ModelVariant(plan.variant), plan.n_rods, step.physics.impact_rate_hz)
+
+
+def _per_rod(rate_hz: float | None, n_rods: int) -> float | None:
+    return None if rate_hz is None else rate_hz / n_rods
 
 
 def _dose_cell(dose_kj_g: float, target_kj_g: float | None) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import time
 from pathlib import Path
 from typing import Any
@@ -64,18 +65,19 @@ def _run(args: argparse.Namespace) -> int:
     check_parameters(study, loaded.config, args.file)
     runner = StudyRunner(study, loaded.config, args.file)
     store = ResultsStore(_results_path(args), runner.fingerprint)
-    if args.fresh:
-        store.reset()
-    reused = store.resume()
-    runner.store = store
-    pareto = _pareto_metrics(args.pareto, runner.metrics)
-    err = stderr_console()
-    backend = make_backend(args.workers, args.scheduler)
-    started = time.perf_counter()
+    store.lock()  # one run per results file: a second is refused with this PID
     try:
-        result = _with_progress(runner, backend, err, study.study.name)
+        if args.fresh:
+            store.reset()
+        reused = store.resume()
+        runner.store = store
+        pareto = _pareto_metrics(args.pareto, runner.metrics)
+        err = stderr_console()
+        backend = make_backend(args.workers, args.scheduler, *_size(study, runner))
+        started = time.perf_counter()
+        result = _interruptible(runner, backend, err, study.study.name, store)
     finally:
-        backend.close()
+        store.unlock()
     elapsed = time.perf_counter() - started
     summary = _summary(args, study, loaded.source, store, result, backend, elapsed, reused, pareto)
     summary["fingerprint"] = runner.fingerprint
@@ -105,6 +107,54 @@ def _pareto_metrics(text: str | None, metrics: tuple[str, ...]) -> list[str] | N
             f"{', '.join(metrics)}"
         )
     return names
+
+
+def _size(study: Any, runner: Any) -> tuple[int, bool]:
+    """Points to compute (a grid's pending ones; an optimiser's population per generation) and whether they simulate."""
+    from millctl.studies.metrics import METRICS
+    from millctl.studies.run import grid_points
+
+    simulated = any(METRICS[n].level == "c" for n in runner.metrics)
+    if study.is_optimisation:
+        settings = study.optimiser
+        population = (settings.population if settings is not None else 8) * len(study.parameters)
+        return population, simulated
+    pending = [p for p in grid_points(study) if runner.store is None or _key(p) not in runner.store.rows]
+    return len(pending), simulated
+
+
+def _key(params: dict[str, Any]) -> str:
+    from millctl.studies.engine import point_key
+
+    return point_key(params)
+
+
+def _interruptible(runner: Any, backend: Any, console: Any, name: str, store: Any) -> Any:
+    """Run the study; on Ctrl+C (SIGINT to the group or to this process) stop the workers at once.
+
+    Every finished batch is already in the results file (the store writes each as it comes);
+    the batches running are lost, the rest never start. Says what was saved, then lets the
+    interrupt end the command (exit code 130).
+    """
+    # Ctrl+C must reach the study even where it was started with SIGINT ignored (a background job of a
+    # script, a test's subprocess): Python then never installs its KeyboardInterrupt handler by itself
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        result = _with_progress(runner, backend, console, name)
+    except KeyboardInterrupt:
+        backend.abort()
+        console.print(
+            f"interrupted: {len(store.rows)} finished points are in {store.path}; run the same command to resume",
+            highlight=False,
+        )
+        raise
+    except BaseException:
+        backend.abort()
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    backend.close()
+    return result
 
 
 def _with_progress(runner: Any, backend: Any, console: Any, name: str) -> Any:
@@ -157,6 +207,7 @@ def _summary(
         "objective": result.objective,
         "metrics": list(result.metrics),
         "best": _clean(result.best),
+        "findings": [_clean(f) for f in result.findings],
     }
     if pareto is not None:
         data["pareto"] = pareto
@@ -185,6 +236,16 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
         for row in summary["pareto_front"]:
             front.add_row(str(row["point"]), *(_fmt(row[p]) for p in params), *(_fmt(row[n]) for n in names))
         out.print(front)
+    if summary["findings"]:
+        found = Table(title="findings: the best feasible point of each group, by each criterion")
+        names = [k for k in summary["findings"][0] if k not in ("point", "value")]
+        extra = [k for f in summary["findings"] for k in f if k not in names and k not in ("point", "value")]
+        names += list(dict.fromkeys(extra))
+        for name in (*names, "point", "value"):
+            found.add_column(name, justify="right")
+        for f in summary["findings"]:
+            found.add_row(*(_fmt(f.get(n)) for n in (*names, "point", "value")))
+        out.print(found)
     rate = summary["points_per_s"]
     stderr_console().print(
         f"{summary['points']} points ({summary['computed']} computed, {summary['reused']} from {summary['results']}), "
@@ -204,6 +265,8 @@ def _param_columns(rows: list[dict[str, Any]]) -> set[str]:
 
 
 def _fmt(value: Any) -> str:
+    if value is None:
+        return "—"
     if isinstance(value, float):
         if not math.isfinite(value):
             return "—"

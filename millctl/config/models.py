@@ -152,6 +152,36 @@ class Model(_Strict):
     """Friction coefficient μ between rod or vial and powder (eqs 20, 25)."""
 
 
+class Structure(_Strict):
+    """The vibrating platform's structure, for the structural-load model (docs/model.md#structural-loads).
+
+    The paper gives none of these; the defaults are a stated, light design (docs/model.md names
+    them as assumptions), and a study may vary none of them to produce its answer.
+    """
+
+    platform_mass_kg: Annotated[float, Field(gt=0.0, le=1_000.0)] = 5.0
+    """Vibrating platform without the rods: rotary motor, shaft, bearings, vial holder and vial (kg)."""
+    shaft_mass_kg: Annotated[float, Field(gt=0.0, le=1_000.0)] = 1.0
+    """The part of it the rotary shaft's bearings carry: vial and holder (kg; rods added separately)."""
+    platform_spring_n_per_m: Annotated[float, Field(ge=0.0, le=1e8)] = 1.0e4
+    """K_s, the four platform springs together (N/m); not the per-rod k of eqs 4–9."""
+    spring_preload_mm: Annotated[float, Field(ge=0.0, le=200.0)] = 0.0
+    """δ0, static extension of the platform springs that holds the roller on the cam (mm)."""
+    roller_radius_mm: Annotated[float, Field(gt=0.0, le=500.0)] = 10.0
+    cam_radius_mm: Annotated[float, Field(gt=0.0, le=1_000.0)] = 30.0
+    """Radius of the circular (eccentric) cam disc (mm)."""
+    contact_width_mm: Annotated[float, Field(gt=0.0, le=1_000.0)] = 10.0
+    """Width of the cam–roller line contact (mm)."""
+    contact_endurance_mpa: Annotated[float, Field(gt=0.0, le=10_000.0)] = 1_500.0
+    """Endurance limit of the cam–roller Hertz pressure p_max (MPa): below it, no contact fatigue."""
+    endurance_cycles: Annotated[float, Field(gt=0.0, le=1e12)] = 1.0e7
+    """Cycles at which the endurance limit is stated."""
+    bearing_rating_n: Annotated[float, Field(gt=0.0, le=1e7)] = 12_700.0
+    """Dynamic load rating C of one rotary-shaft bearing (N; a 6204 deep-groove ball bearing)."""
+    cam_material: str = "steel"
+    """Material of the cam and the roller (a defined material)."""
+
+
 class Mill(_Strict):
     """Geometry of the mill: rods, vial, cam and spring."""
 
@@ -160,6 +190,7 @@ class Mill(_Strict):
     cam: Cam
     spring: Spring
     powder: Powder = Powder()
+    structure: Structure = Structure()
 
     @model_validator(mode="after")
     def _rods_fit(self) -> Mill:
@@ -476,6 +507,7 @@ class MillConfig(_Strict):
         for where, name in (
             ("mill.rods.material", self.mill.rods.material),
             ("mill.vial.material", self.mill.vial.material),
+            ("mill.structure.cam_material", self.mill.structure.cam_material),
         ):
             if name not in self.materials:
                 known = ", ".join(sorted(self.materials)) or "none"
@@ -526,6 +558,7 @@ __all__ = [
     "Rods",
     "Service",
     "Spring",
+    "Structure",
     "Timing",
     "Vial",
 ]

@@ -21,10 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from millctl.config import ModelVariant, load_config
+from millctl.config import MillConfig, ModelVariant, load_config
+from millctl.physics import structure
 from millctl.physics.detachment import find_detachment
 from millctl.physics.impact import (
     carriage_shear_pa,
+    effective_modulus_pa,
     hertz_half_width_m,
     rod_rod_contact_area_m2,
     rod_rod_weight_shear_pa,
@@ -115,6 +117,34 @@ def errata_numbers(model: MillModel, omega_r_rpm: float = 200.0, omega_v_rpm: fl
     }
 
 
+def structural_numbers(config: MillConfig, omega_r_rpm: float = 200.0, omega_v_rpm: float = 800.0) -> dict[str, Any]:
+    """The figures docs/model.md#structural-loads quotes, for a configured mill at the operating point."""
+    p = structure.StructureParams.from_config(config)
+    model = dataclasses.replace(MillModel.from_config(config), variant=ModelVariant.CORRECTED)
+    w_r, w_v = rpm_to_rad_s(omega_r_rpm), rpm_to_rad_s(omega_v_rpm)
+    low, high = (float(x) for x in structure.cam_contact_force_range_n(p, w_v))
+    bare = dataclasses.replace(p, platform_spring_n_per_m=0.0, preload_m=0.0)
+    shaft = float(structure.shaft_load_peak_n(p, w_r, w_v))
+    weight = model.rod_mass_kg * model.g_m_s2
+    wall = (model.rod_length_m, model.rod_radius_m, model.vial_radius_m, effective_modulus_pa(model))
+    energy = revolution_summary(model, w_r, w_v, cam_phases=16).mean_impact_energy_j
+    return {
+        "moving_mass_kg": p.moving_mass_kg,
+        "follower_jump_rpm": float(rad_s_to_rpm(structure.follower_jump_rad_s(p))),
+        "follower_jump_without_springs_rpm": float(rad_s_to_rpm(structure.follower_jump_rad_s(bare))),
+        "cam_contact_force_range_n": [low, high],
+        "cam_contact_pressure_mpa": float(structure.cam_contact_pressure_pa(p, high)) / 1e6,
+        "contact_endurance_mpa": p.endurance_pa / 1e6,
+        "shaft_load_peak_n": shaft,
+        "bearing_life_h": float(structure.bearing_life_h(p, shaft, w_r)),
+        "impact_threshold_j": structure.resting_contact_energy_j(weight, *wall),
+        "resting_approach_nm": float(structure.line_contact_compliance_m_per_n(weight, *wall)) * weight * 1e9,
+        "impact_energy_mean_16_phases_j": energy,
+        "impact_force_n": float(structure.impact_force_n(energy, *wall)),
+        "weight_n": weight,
+    }
+
+
 def _cell(value: float, spec: str) -> str:
     return "—" if math.isnan(value) else format(value, spec)
 
@@ -133,8 +163,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vib-rpm", type=float, default=800.0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    model = MillModel.from_config(load_config(args.config).config)
+    config = load_config(args.config).config
+    model = MillModel.from_config(config)
     numbers = errata_numbers(model, args.rot_rpm, args.vib_rpm)
+    numbers["structure"] = structural_numbers(config, args.rot_rpm, args.vib_rpm)
     w_r, w_v = rpm_to_rad_s(args.rot_rpm), rpm_to_rad_s(args.vib_rpm)
     effects = [slip_effect(model, w_r, w_v, friction=mu) for mu in (None, 1.0, 3.0)]
     if args.json:

@@ -89,6 +89,10 @@ class RevolutionSummary:
     """The paper's no-slip carriage needs more wall friction than μN somewhere (docs/model.md, slip)."""
     slip_onset_theta_rad: float = math.nan
     """Where that first happens on the carried arc (circular mean over the samples), nan when it never does."""
+    slip_fraction: float = 0.0
+    """Share of the sampled cam phases whose carriage needs |F_t| > μN before the rod leaves (or in the revolution)."""
+    sub_threshold_fraction: float = 0.0
+    """Share of the sampled cam phases whose landing dissipates less than ``min_impact_energy_j``: not counted."""
 
 
 def _pinned(shear_pa: float, checks: list[NoSlipCheck] | None = None) -> RevolutionSummary:
@@ -242,12 +246,19 @@ def _reference_samples(
 
 
 def revolution_summary(
-    model: MillModel, omega_r_rad_s: float, omega_v_rad_s: float, cam_phases: int = 4, engine: str = "compiled"
+    model: MillModel,
+    omega_r_rad_s: float,
+    omega_v_rad_s: float,
+    cam_phases: int = 4,
+    engine: str = "compiled",
+    min_impact_energy_j: float = 0.0,
 ) -> RevolutionSummary:
     """Level-(b) summary of one revolution at constant speeds (rad/s); never raises at standstill.
 
     Negative speeds are mirror images and are taken by magnitude. ``engine``:
     ``"compiled"`` (:mod:`.kernels`, the node's) or ``"reference"`` (numpy/scipy), same answers.
+    A landing that dissipates less than ``min_impact_energy_j`` is not an impact (a micro-hop: the
+    studies' threshold, :func:`millctl.physics.structure.resting_contact_energy_j`); 0 counts every one.
     """
     if not (math.isfinite(omega_r_rad_s) and math.isfinite(omega_v_rad_s)):
         raise PhysicsInputError(f"speeds must be finite, got ω_r = {omega_r_rad_s}, ω_v = {omega_v_rad_s} rad/s")
@@ -261,10 +272,15 @@ def revolution_summary(
     shear = _mean_shear_pa(model, w_r)
     theta_start = _start_angle_rad(model, w_r, w_v)
     sampler = _compiled_samples if engine == "compiled" else _reference_samples
-    samples, onsets = sampler(model, w_r, w_v, theta_start, cam_phases)
+    found, onsets = sampler(model, w_r, w_v, theta_start, cam_phases)
     violated, onset = bool(onsets), _circular_mean(onsets)
+    slipping = len(onsets) / cam_phases
+    samples = [s for s in found if s[1] >= min_impact_energy_j]
+    below = (len(found) - len(samples)) / cam_phases
     if not samples:
-        return RevolutionSummary(False, math.nan, 0.0, 0.0, 0.0, shear, 0.0, 0.0, math.nan, math.nan, violated, onset)
+        return RevolutionSummary(
+            False, math.nan, 0.0, 0.0, 0.0, shear, 0.0, 0.0, math.nan, math.nan, violated, onset, slipping, below
+        )
     count = len(samples)
     fraction = count / cam_phases
     theta_d = _circular_mean([s[0] for s in samples])
@@ -284,6 +300,8 @@ def revolution_summary(
         wall_impact_fraction=sum(1.0 for s in samples if s[4]) / count,
         no_slip_violated=violated,
         slip_onset_theta_rad=onset,
+        slip_fraction=slipping,
+        sub_threshold_fraction=below,
     )
 
 

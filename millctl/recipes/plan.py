@@ -74,6 +74,10 @@ class RecipePlan:
     notes: tuple[str, ...] = field(default=())
     powder_charge_g: float = math.nan
     """Powder in the vial (g) the doses are per gram of."""
+    variant: str = "paper"
+    """Physics variant of the steps' summaries: the paper's reports eq. 18 per rod, the corrected one per mill."""
+    n_rods: int = 1
+    """Rods in the mill: the whole mill's impact rate (the doses') is n × one rod's."""
 
     @property
     def ok(self) -> bool:
@@ -257,6 +261,8 @@ class _Walker:
             law=self.envelope.law.value,
             margin=self.envelope.margin,
             powder_charge_g=self.powder_g,
+            variant=self.model.variant.value,
+            n_rods=self.model.n_rods,
         )
 
 

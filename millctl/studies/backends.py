@@ -1,16 +1,28 @@
 """Where a study's points run: in this process, on all local cores, or on a Dask distributed cluster.
 
 Every backend maps :func:`~millctl.studies.engine.evaluate_batch` over batches
-of points and yields the batches' rows *in submission order*, so a study's
-results are the same point for point whatever runs them.
+of points and yields each batch's rows as soon as it is finished (in any order:
+the runner files rows by point, so a study's results are the same point for
+point whatever runs them, and an interruption loses no finished batch).
+
+Interrupts (issue 40): :meth:`Backend.abort` stops at once — local workers are
+killed, queued batches and Dask futures cancelled. Local workers ignore SIGINT
+(Ctrl+C reaches the whole process group; the parent decides), and never outlive
+the study: each asks the kernel for SIGKILL when its parent dies
+(``prctl(PR_SET_PDEATHSIG)``, Linux) and watches the study's PID besides (the
+forkserver, not the study, is a worker's parent; and other systems have no prctl).
 """
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Protocol
 
 from millctl.errors import InvalidInputError
@@ -26,12 +38,53 @@ class Backend(Protocol):
     workers: int
 
     def map(self, batches: Iterable[Sequence[PointTask]]) -> Iterator[Rows]:
-        """Rows of each batch, in the order the batches were given."""
+        """Rows of each batch, as each finishes."""
         ...
 
     def close(self) -> None:
         """Release workers or the cluster connection."""
         ...
+
+    def abort(self) -> None:
+        """Stop now: kill the workers, drop what is queued (after Ctrl+C)."""
+        ...
+
+
+PR_SET_PDEATHSIG = 1
+"""prctl(2) option: the signal this process gets when its parent dies (Linux)."""
+PARENT_WATCH_S = 0.5
+"""How often a worker checks that the study is still there (s)."""
+
+
+def _running(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, exited but not yet reaped by its parent, does not)."""
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, PermissionError):  # gone, or the PID reused by another user's process
+        return False
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):  # no /proc (not Linux): kill(pid, 0) is all there is
+        return True
+
+
+def _die_with(study_pid: int) -> None:
+    """In a worker: leave Ctrl+C to the study, die with the forkserver (prctl) and with the study (watch)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the watch below is the only guard
+        pass
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_WATCH_S)
+            if not _running(study_pid):
+                os._exit(1)
+
+    threading.Thread(target=watch, name="millctl-study-watch", daemon=True).start()
 
 
 def local_cores() -> int:
@@ -53,6 +106,9 @@ class SerialBackend:
     def close(self) -> None:
         """Nothing to release."""
 
+    def abort(self) -> None:
+        """Nothing runs outside this process."""
+
 
 class LocalBackend:
     """A pool of worker processes on this machine (forkserver: clean workers, no inherited threads)."""
@@ -64,15 +120,43 @@ class LocalBackend:
             raise InvalidInputError(f"workers = {workers} must be ≥ 1")
         self.workers = workers
         context = multiprocessing.get_context("forkserver")
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        self._pool = ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=_die_with, initargs=(os.getpid(),)
+        )
 
     def map(self, batches: Iterable[Sequence[PointTask]]) -> Iterator[Rows]:
-        """Submit every batch; yield their rows in order as they finish."""
-        yield from self._pool.map(evaluate_batch, batches)
+        """Submit every batch; yield each one's rows as it finishes."""
+        pending: set[Future[Rows]] = {self._pool.submit(evaluate_batch, b) for b in batches}
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield future.result()
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def worker_pids(self) -> list[int]:
+        """The PIDs of the pool's worker processes (started on the first batch)."""
+        return [p.pid for p in self._processes() if p.pid is not None]
+
+    def _processes(self) -> list[Any]:
+        # the pool's own table of workers (Python 3.14 adds ProcessPoolExecutor.terminate_workers())
+        return list((self._pool._processes or {}).values())
 
     def close(self) -> None:
         """Shut the pool down (cancelling batches not started)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def abort(self) -> None:
+        """Kill the workers (a running batch is lost; finished ones are saved) and drop the queue."""
+        processes = self._processes()
+        for process in processes:
+            if process.is_alive():
+                process.kill()
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.join(timeout=5.0)
 
 
 class DaskBackend:
@@ -94,13 +178,17 @@ class DaskBackend:
             except OSError as exc:
                 raise InvalidInputError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
         self._client = client
+        self._futures: list[Any] = []
         self.workers = max(sum(client.nthreads().values()), 1)
 
     def map(self, batches: Iterable[Sequence[PointTask]]) -> Iterator[Rows]:
-        """Submit every batch as a task; gather the rows in submission order."""
+        """Submit every batch as a task; yield each one's rows as it finishes."""
+        from distributed import as_completed
+
         futures = [self._client.submit(evaluate_batch, list(b), pure=False) for b in batches]
+        self._futures = futures
         try:
-            for future in futures:
+            for future in as_completed(futures):
                 yield future.result()
         finally:
             for future in futures:
@@ -111,12 +199,43 @@ class DaskBackend:
         if self._own:
             self._client.close()
 
+    def abort(self) -> None:
+        """Cancel every batch not yet gathered (the cluster's workers are the cluster's)."""
+        for future in self._futures:
+            future.cancel()
+        self.close()
 
-def make_backend(workers: int | None = None, scheduler: str | None = None) -> Backend:
-    """The backend for the command line: Dask when a scheduler is named, else local processes."""
+
+POINT_S = {"array": 2e-5, "simulated": 3e-2}
+"""Nominal serial cost of a point (s): level (a, b) by the array path, level (c) (bench/study.py measures both)."""
+WORKER_STARTUP_S = 3.0
+"""Nominal start-up of a local pool, its workers' imports and compiled code loaded (s; bench/study.py measures it)."""
+
+
+def worth_workers(points: int, simulated: bool, workers: int) -> bool:
+    """Whether ``workers`` workers keep ≥ 80 % efficiency on ``points`` points: N·c ≥ 4·w·S.
+
+    With N points of serial cost c and a pool that takes S to start, the efficiency is
+    N c / (w S + N c), ≥ 0.8 exactly when N c ≥ 4 w S: a level-(c) study pays from a few
+    thousand points, a level-(a, b) one only past ~10⁶ (docs/benchmarks.md, section 4).
+    """
+    cost = POINT_S["simulated" if simulated else "array"]
+    return workers > 1 and points * cost >= 4.0 * workers * WORKER_STARTUP_S
+
+
+def make_backend(
+    workers: int | None = None, scheduler: str | None = None, points: int | None = None, simulated: bool = True
+) -> Backend:
+    """The backend for the command line: Dask when a scheduler is named, else local processes.
+
+    Without ``workers``: every local core when the study (``points``, ``simulated``: has level-(c)
+    metrics) is large enough to gain from them (:func:`worth_workers`), else this process alone.
+    """
     if scheduler:
         return DaskBackend(scheduler)
     count = local_cores() if workers is None else workers
+    if workers is None and points is not None and not worth_workers(points, simulated, count):
+        count = 1
     return SerialBackend() if count == 1 else LocalBackend(count)
 
 
@@ -136,4 +255,5 @@ __all__ = [
     "batched",
     "local_cores",
     "make_backend",
+    "worth_workers",
 ]

@@ -6,7 +6,11 @@ computes only the levels its metrics need.
 
 Impact rates count every rod (eq. 18 corrected, n·p·ω_r/2π) in both variants,
 so that the paper's and the corrected model compare like with like; the energy
-of an impact is the variant's (eq. 19 printed, or ½ m_eff (1 − e²) v_n²).
+of an impact is the variant's (eq. 19 printed, or ½ m_eff (1 − e²) v_n²). Names:
+a quantity of one rod says ``per_rod``; every other rate, power and dose is the
+whole mill's. A landing below :func:`~millctl.studies.loads.impact_threshold_j`
+is a micro-hop, not an impact, at every level. Level (b) integrates over the cam
+phase to a stated error (:func:`cam_phase_summary`) unless ``cam_phases`` fixes K.
 """
 
 from __future__ import annotations
@@ -19,11 +23,18 @@ import numpy as np
 from millctl.config.models import LimitLaw, MillConfig
 from millctl.physics.cam import lift_phase_rad, lift_speed_rad_s
 from millctl.physics.dose import dose_rate_j_g_s, milling_power_w, whole_mill_rate_hz
-from millctl.physics.impact import hertz_half_width_m, spin_shear_pa
+from millctl.physics.impact import carriage_shear_pa
 from millctl.physics.limits import LimitParams, omega_r_max, vibration_intensity
 from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import simulate
-from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S, revolution_summary
+from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S, RevolutionSummary, revolution_summary
+from millctl.studies.loads import (
+    carried_arc_slip,
+    impact_loads,
+    impact_threshold_j,
+    slip_ride_metrics,
+    structural_metrics,
+)
 from millctl.units import rad_s_to_rpm
 
 
@@ -33,7 +44,7 @@ class Metric:
 
     name: str
     level: str
-    """"a" closed form, "b" per-revolution summary, "c" multi-rod simulation."""
+    """"a" closed form, "b" per-revolution summary, "s" slip ride, "c" multi-rod simulation."""
     description: str
 
 
@@ -44,26 +55,50 @@ def _margin_name(law: LimitLaw) -> str:
 _LIST = [
     *(Metric(_margin_name(law), "a", f"ω_r,max under {law.value} minus ω_r (rpm; < 0 outside)") for law in LimitLaw),
     Metric("gamma", "a", "cam intensity Γ = r_d (hω_v)²/g"),
-    Metric("spring_force_amplitude_n", "a", "spring force amplitude k·r_d (N)"),
-    Metric("paper_estimate_power_w", "a", "the paper's own estimate: eq. 18 with p = 1 × eq. 19 at |v| = r0 ω_r (W)"),
-    Metric("rod_rod_shear_pa", "a", "eq. 20, μ W_r / A with the rod's whole weight on the line of centres (Pa)"),
+    Metric("spring_force_amplitude_n", "a", "k·r_d of eqs 4–9, the per-rod spring term (N)"),
+    Metric("paper_estimate_power_w", "a", "the paper's estimate, whole mill: n × eq. 18 (p = 1) × eq. 19 at r0 ω_r"),
+    Metric("paper_estimate_power_per_rod_w", "a", "the same for one rod, as eq. 18 is printed (W)"),
+    Metric("platform_acceleration_peak_m_s2", "a", "peak platform and vial acceleration r_d (hω_v)² (m/s²)"),
+    Metric("spring_force_peak_n", "a", "peak tension of the four platform springs K_s (δ0 + r_d) (N)"),
+    Metric("cam_contact_force_min_n", "a", "least cam–roller contact force over the cam phase (N; < 0: roller jumps)"),
+    Metric("cam_contact_force_max_n", "a", "largest cam–roller contact force over the cam phase (N)"),
+    Metric("follower_jump_margin_rpm", "a", "cam speed at which the roller leaves the cam minus ω_v (rpm)"),
+    Metric("cam_contact_pressure_pa", "a", "Hertz p_max of the cam–roller contact at the largest force (Pa)"),
+    Metric("cam_fatigue_cycles", "a", "cycles to contact fatigue at that pressure (inf below the endurance limit)"),
+    Metric("shaft_load_peak_n", "a", "peak quasi-static load on the rotary shaft's bearings (N)"),
+    Metric("bearing_life_h", "a", "L10 life of one shaft bearing at that load and ω_r (h)"),
     Metric("impact_rate_hz", "b", "impacts per second, whole mill, n·p·ω_r/2π (eq. 18 corrected)"),
     Metric("impact_rate_per_rod_hz", "b", "impacts per second and rod, p·ω_r/2π (eq. 18)"),
     Metric("impact_energy_mean_j", "b", "mean energy of an impact (eq. 19, variant's form) (J)"),
-    Metric("milling_power_w", "b", "impact rate × mean impact energy (W)"),
-    Metric("dose_rate_j_g_s", "b", "specific energy dose rate: milling power per gram of powder (J/g/s)"),
+    Metric("milling_power_w", "b", "whole mill: impact rate × mean impact energy (W)"),
+    Metric("dose_rate_j_g_s", "b", "whole mill's milling power per gram of powder (J/g/s)"),
     Metric("wall_shear_pa", "b", "eq. 25, μ·p_av averaged over the pinned arc (Pa)"),
-    Metric("detach_fraction", "b", "share of cam phases whose revolution has a detachment"),
+    Metric("detach_fraction", "b", "share of cam phases whose revolution has a counted impact"),
     Metric("theta_d_deg", "b", "mean detachment angle (degrees; nan when pinned)"),
+    Metric("impact_force_peak_n", "b", "peak force of a wall impact at the mean impact energy (N)"),
+    Metric("rod_rod_shear_pa", "b", "eq. 20 with the impact force: μ F / A(F), A the rod–rod Hertz strip (Pa)"),
+    Metric("no_slip_violated", "b", "1 when the carriage needs |F_t| > μN at some cam phase, else 0"),
+    Metric("slip_fraction", "b", "share of cam phases whose carriage slips before the rod leaves"),
+    Metric("micro_hop_fraction", "b", "share of cam phases whose landing is below the impact threshold"),
+    Metric("cam_phases_used", "b", "cam phases the level-(b) integral took"),
+    Metric("cam_phase_error", "b", "its error estimate: change of milling power at the last doubling (relative)"),
+    Metric("slip_impact_fraction", "s", "with slip (spin locked): share of cam phases with a counted wall impact"),
+    Metric("slip_impact_energy_mean_j", "s", "with slip: mean wall impact energy (J)"),
+    Metric("slip_milling_power_w", "s", "with slip: whole mill's impact power, n·fraction·ω_r/2π × energy (W)"),
+    Metric("slip_unresolved_fraction", "s", "with slip: share of cam phases whose landing the contact search failed"),
     Metric("impact_energy_p10_j", "c", "10th percentile of impact energy over the simulated impacts (J)"),
     Metric("impact_energy_p90_j", "c", "90th percentile of impact energy over the simulated impacts (J)"),
     Metric("sim_impact_rate_hz", "c", "impacts per second in the multi-rod simulation, whole mill"),
-    Metric("spin_shear_pa", "c", "eq. 27 at the wall-impact points, mean of its magnitude (Pa)"),
+    Metric("sim_slip_fraction", "c", "share of the simulation's carried arcs whose carriage needs |F_t| > μN"),
+    Metric("sim_slip_lead_deg", "c", "mean wall angle before a departure over which the carriage slips (deg)"),
+    Metric("spin_shear_pa", "c", "eqs 26–27 corrected at the wall impacts: min(|F_t|, μN)/(2 L b), mean (Pa)"),
 ]
 METRICS: dict[str, Metric] = {m.name: m for m in _LIST}
 """Every metric by name."""
 
 DEFAULT_METRICS = tuple(m.name for m in _LIST if m.level in ("a", "b"))
+MAX_CAM_PHASES = 256
+"""The level-(b) integral stops doubling the cam phases here, whatever its error."""
 """Metrics of a study that names none: every level-(a) and level-(b) metric."""
 
 
@@ -71,8 +106,12 @@ DEFAULT_METRICS = tuple(m.name for m in _LIST if m.level in ("a", "b"))
 class PointSettings:
     """How hard to look at one point."""
 
-    cam_phases: int = 4
+    cam_phases: int = 0
+    """Level (b): a fixed number of cam phases, or 0 to integrate to ``cam_phase_rtol``."""
     revolutions: float = 4.0
+    cam_phase_rtol: float = 0.01
+    slip_phases: int = 8
+    """Level (s): cam phases ridden with slip."""
 
 
 def _level_a(config: MillConfig, model: MillModel, w_r: float, w_v: float) -> dict[str, float]:
@@ -80,30 +119,64 @@ def _level_a(config: MillConfig, model: MillModel, w_r: float, w_v: float) -> di
     out = {_margin_name(law): float(rad_s_to_rpm(omega_r_max(law, p, w_v) - w_r)) for law in LimitLaw}
     out["gamma"] = float(vibration_intensity(p, w_v))
     out["spring_force_amplitude_n"] = model.spring_n_per_m * model.eccentricity_m
-    # the paper's reasoning: one impact per revolution (eq. 18, p = 1) of ½ m |v|² at the wall speed (eq. 19)
-    out["paper_estimate_power_w"] = w_r / (2.0 * math.pi) * 0.5 * model.rod_mass_kg * (model.r0_m * w_r) ** 2
-    # eq. 20: two equal convex rods, 1/R' = 2/r_r, 1/E* = 2(1 − ν²)/E, W_r = m g
-    weight = model.rod_mass_kg * model.g_m_s2
-    r_eff = 0.5 * model.rod_radius_m
-    e_star = model.rod_youngs_pa / (2.0 * (1.0 - model.rod_poisson**2))
-    b = math.sqrt(4.0 * weight * r_eff / (math.pi * model.rod_length_m * e_star))
-    out["rod_rod_shear_pa"] = model.powder_friction * weight / (2.0 * b * model.rod_length_m)
+    # the paper's reasoning: one impact per rod and revolution (eq. 18, p = 1) of ½ m |v|² at the wall speed (eq. 19)
+    per_rod = w_r / (2.0 * math.pi) * 0.5 * model.rod_mass_kg * (model.r0_m * w_r) ** 2
+    out["paper_estimate_power_per_rod_w"] = per_rod
+    out["paper_estimate_power_w"] = model.n_rods * per_rod
+    out |= {name: float(value) for name, value in structural_metrics(config, w_r, w_v).items()}
     return out
 
 
-def _level_b(config: MillConfig, model: MillModel, w_r: float, w_v: float, cam_phases: int) -> dict[str, float]:
-    s = revolution_summary(model, w_r, w_v, cam_phases=cam_phases)
+def cam_phase_summary(
+    model: MillModel, w_r: float, w_v: float, settings: PointSettings, threshold_j: float
+) -> tuple[RevolutionSummary, int, float]:
+    """The level-(b) summary integrated over the cam phase: (summary, phases used, error estimate).
+
+    With ``settings.cam_phases`` > 0, that many phases and error nan. Otherwise K = 8, 16, ...
+    (evenly spaced phases: the rule that integrates a smooth periodic function best) until doubling
+    K changes the milling power by at most ``cam_phase_rtol`` of it and the detaching share by at
+    most ``cam_phase_rtol`` (or K = :data:`MAX_CAM_PHASES`); the error is that last change.
+    """
+    if settings.cam_phases > 0:
+        s = revolution_summary(model, w_r, w_v, cam_phases=settings.cam_phases, min_impact_energy_j=threshold_j)
+        return s, settings.cam_phases, math.nan
+    k = 8
+    s = revolution_summary(model, w_r, w_v, cam_phases=k, min_impact_energy_j=threshold_j)
+    while True:
+        finer = revolution_summary(model, w_r, w_v, cam_phases=2 * k, min_impact_energy_j=threshold_j)
+        k *= 2
+        scale = max(abs(finer.impact_power_w), abs(s.impact_power_w))
+        error = abs(finer.impact_power_w - s.impact_power_w) / scale if scale > 0.0 else 0.0
+        share = abs(finer.detach_fraction - s.detach_fraction)
+        s = finer
+        if (error <= settings.cam_phase_rtol and share <= settings.cam_phase_rtol) or k >= MAX_CAM_PHASES:
+            return s, k, error
+
+
+def _level_b(
+    config: MillConfig, model: MillModel, w_r: float, w_v: float, settings: PointSettings, threshold_j: float
+) -> tuple[dict[str, float], int]:
+    s, phases, error = cam_phase_summary(model, w_r, w_v, settings, threshold_j)
     total = whole_mill_rate_hz(model.variant, model.n_rods, s.impact_rate_hz) if s.detached else 0.0
+    energy = s.mean_impact_energy_j if s.detached else math.nan
+    loads = impact_loads(model, energy)
     return {
         "impact_rate_hz": total,
         "impact_rate_per_rod_hz": total / model.n_rods,
-        "impact_energy_mean_j": s.mean_impact_energy_j if s.detached else math.nan,
+        "impact_energy_mean_j": energy,
         "milling_power_w": milling_power_w(model, s),
         "dose_rate_j_g_s": dose_rate_j_g_s(model, s, config.mill.powder.charge_g),
         "wall_shear_pa": s.mean_shear_pa,
         "detach_fraction": s.detach_fraction,
         "theta_d_deg": math.degrees(s.theta_d_rad),
-    }
+        "impact_force_peak_n": float(loads["impact_force_peak_n"]) if s.detached else math.nan,
+        "rod_rod_shear_pa": float(loads["rod_rod_shear_pa"]) if s.detached else math.nan,
+        "no_slip_violated": 1.0 if s.no_slip_violated else 0.0,
+        "slip_fraction": s.slip_fraction,
+        "micro_hop_fraction": s.sub_threshold_fraction,
+        "cam_phases_used": float(phases),
+        "cam_phase_error": error,
+    }, phases
 
 
 def _level_c(model: MillModel, w_r: float, w_v: float, revolutions: float, seed: int) -> tuple[dict[str, float], int]:
@@ -115,24 +188,31 @@ def _level_c(model: MillModel, w_r: float, w_v: float, revolutions: float, seed:
             "impact_energy_p90_j": nan,
             "sim_impact_rate_hz": 0.0,
             "spin_shear_pa": nan,
+            "sim_slip_fraction": nan,
+            "sim_slip_lead_deg": nan,
         }, 0
     theta0, alpha0 = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi, size=2)
     t_end = revolutions * 2.0 * math.pi / w_r
-    result = simulate(Scene(model, w_r, w_v, float(theta0), float(alpha0)), t_end)
-    energies = result.impacts["energy_j"]
-    wall = result.impacts[result.impacts["partner"] == -1]
+    scene = Scene(model, w_r, w_v, float(theta0), float(alpha0))
+    result = simulate(scene, t_end)
+    slip_share, slip_lead = carried_arc_slip(scene, result.impacts, result.detachments)
+    counted = result.impacts[result.impacts["energy_j"] >= impact_threshold_j(model)]
+    energies = counted["energy_j"]
+    wall = counted[counted["partner"] == -1]
     spins = []
+    w_lift = lift_speed_rad_s(model.cam, w_v)
     for theta, alpha in zip(wall["theta_rad"], wall["alpha_rad"], strict=True):
-        lift = lift_phase_rad(model.cam, float(alpha))
-        g_eff = model.g_m_s2 - model.eccentricity_m * lift_speed_rad_s(model.cam, w_v) ** 2 * math.sin(lift)
-        load = model.rod_mass_kg * max(model.r0_m * w_r * w_r - g_eff * math.sin(theta), 0.0)
-        if hertz_half_width_m(model, load) > 0.0:
-            spins.append(abs(spin_shear_pa(model, load, math.sin(lift), float(theta))))
+        # eqs 26–27 corrected: the traction the wall gives the re-pinned rod, capped at μN
+        _, capped = carriage_shear_pa(model, w_r, w_lift, float(theta), lift_phase_rad(model.cam, float(alpha)))
+        if capped > 0.0:
+            spins.append(capped)
     out = {
         "impact_energy_p10_j": float(np.percentile(energies, 10)) if energies.size else nan,
         "impact_energy_p90_j": float(np.percentile(energies, 90)) if energies.size else nan,
         "sim_impact_rate_hz": energies.size / t_end,
         "spin_shear_pa": float(np.mean(spins)) if spins else nan,
+        "sim_slip_fraction": slip_share,
+        "sim_slip_lead_deg": slip_lead,
     }
     return out, int(result.impacts.size + result.detachments.size)
 
@@ -147,9 +227,23 @@ def compute_metrics(
     events = 0
     if "a" in levels:
         values.update(_level_a(config, model, w_r, w_v))
+    threshold = impact_threshold_j(model)
     if "b" in levels:
-        values.update(_level_b(config, model, w_r, w_v, settings.cam_phases))
-        events += settings.cam_phases
+        summary, phases = _level_b(config, model, w_r, w_v, settings, threshold)
+        values.update(summary)
+        events += phases
+    if "s" in levels:
+        if w_r < MIN_OMEGA_R_RAD_S:
+            ridden: dict[str, float] = {
+                "slip_impact_fraction": 0.0,
+                "slip_impact_energy_mean_j": math.nan,
+                "slip_milling_power_w": 0.0,
+                "slip_unresolved_fraction": 0.0,
+            }
+        else:
+            ridden, n_events = slip_ride_metrics(model, w_r, w_v, settings.slip_phases, threshold)
+            events += n_events
+        values.update(ridden)
     if "c" in levels:
         sim, n_events = _level_c(model, w_r, w_v, settings.revolutions, seed)
         values.update(sim)
@@ -157,4 +251,12 @@ def compute_metrics(
     return {n: float(values[n]) for n in names}, events
 
 
-__all__ = ["DEFAULT_METRICS", "METRICS", "Metric", "PointSettings", "compute_metrics"]
+__all__ = [
+    "DEFAULT_METRICS",
+    "MAX_CAM_PHASES",
+    "METRICS",
+    "Metric",
+    "PointSettings",
+    "cam_phase_summary",
+    "compute_metrics",
+]

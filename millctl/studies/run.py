@@ -13,16 +13,16 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from millctl.config.models import CamShape, MillConfig
+from millctl.config.models import CamShape, MillConfig, ModelVariant
 from millctl.studies.backends import Backend, SerialBackend, batched
 from millctl.studies.engine import ConstraintSpec, ParamValue, PointTask, point_key
 from millctl.studies.metrics import DEFAULT_METRICS, METRICS, PointSettings
-from millctl.studies.schema import INTEGER, Optimiser, Parameter, Study, StudyError
+from millctl.studies.schema import CATEGORICAL, INTEGER, Optimiser, Parameter, Study, StudyError
 from millctl.studies.store import ResultsStore, fingerprint_of
 
 Progress = Callable[[int, int], None]
@@ -43,12 +43,16 @@ class StudyResult:
     reused: int
     metrics: tuple[str, ...]
     objective: dict[str, float]
+    findings: list[dict[str, Any]] = field(default_factory=list)
+    """The best feasible point for each value of the categorical parameters (e.g. each model variant),
+    under the objective and under each ``objective.compare`` metric (:func:`findings`)."""
 
 
 def metric_names(study: Study, source: str) -> tuple[str, ...]:
     """The study's metrics (default: levels a and b) plus any its objective needs; unknown names are errors."""
     names = list(study.metrics.names or DEFAULT_METRICS)
     names += [n for n in study.objective.terms if n not in names]
+    names += [n for n in study.objective.compare if n not in names]
     unknown = [n for n in names if n not in METRICS]
     if unknown:
         known = ", ".join(sorted(METRICS))
@@ -95,8 +99,11 @@ class StudyRunner:
         self.metrics = metric_names(study, source)
         self.terms = study.objective.terms
         c = study.constraints
-        self._constraints = ConstraintSpec(str(c.law), c.drives, c.max_vibration_rpm, c.max_spring_force_n)
-        self._settings = PointSettings(cam_phases=study.metrics.cam_phases, revolutions=study.metrics.revolutions)
+        self._constraints = ConstraintSpec(
+            str(c.law), c.drives, c.max_vibration_rpm, c.max_spring_force_n, c.cam_contact, c.contact_fatigue
+        )
+        m = study.metrics
+        self._settings = PointSettings(m.cam_phases or 0, m.revolutions, m.cam_phase_rtol, m.slip_phases)
         self._base_data = base.model_dump(mode="json")
         fixed = {
             k: v for k, v in (("rotary_rpm", study.study.rotary_rpm), ("vibration_rpm", study.study.vibration_rpm))
@@ -107,6 +114,15 @@ class StudyRunner:
         self._batch_size = batch_size
         self._index: dict[str, int] = {}
         self.computed = 0
+
+    @property
+    def batch_cap(self) -> int:
+        """The largest batch: arrays of up to 1024 level-(a, b) points; 16 points when one simulates (level c).
+
+        A batch is the unit an interrupt loses (the finished ones are saved), and a simulated point takes
+        tens of milliseconds where an array point takes tens of microseconds.
+        """
+        return 16 if any(METRICS[n].level == "c" for n in self.metrics) else 1024
 
     def task(self, params: dict[str, ParamValue]) -> PointTask:
         """The task of one point (its number is the order in which the study first asked for it)."""
@@ -124,7 +140,7 @@ class StudyRunner:
         """Rows of the points, computing only those not yet in the store; in the order given."""
         tasks = [self.task(p) for p in points]
         pending = [t for t in tasks if point_key(t.params) not in self.store.rows]
-        size = self._batch_size or max(1, min(64, math.ceil(len(pending) / (8 * backend.workers))))
+        size = self._batch_size or max(1, min(self.batch_cap, math.ceil(len(pending) / (8 * backend.workers))))
         done = len(tasks) - len(pending)
         if progress is not None:
             progress(done, len(tasks))
@@ -148,7 +164,8 @@ class StudyRunner:
             row["objective"] = objective_value(row, self.terms)
         scored = [r for r in rows if math.isfinite(r["objective"])]
         best = max(scored, key=lambda r: (r["objective"], -int(r["point"]))) if scored else None
-        return StudyResult(rows, best, self.computed, reused, self.metrics, self.terms)
+        found = findings(rows, self.study)
+        return StudyResult(rows, best, self.computed, reused, self.metrics, self.terms, found)
 
     def _params_of(self, x: Iterable[float]) -> dict[str, ParamValue]:
         out: dict[str, ParamValue] = {}
@@ -187,6 +204,34 @@ class StudyRunner:
         )
 
 
+def findings(rows: Sequence[dict[str, Any]], study: Study) -> list[dict[str, Any]]:
+    """Best feasible point per combination of the categorical parameters, under each criterion.
+
+    The criteria are the objective and every ``objective.compare`` metric (maximised alone). Each
+    finding names its group, its criterion, the point's speeds and parameters, and the value; a
+    group with no feasible point under a criterion is a finding with ``point`` None.
+    """
+    groups = [p.value for p in study.parameters if p in CATEGORICAL]
+    numeric = [p.value for p in study.parameters if p not in CATEGORICAL]
+    criteria: list[tuple[str, dict[str, float]]] = [("objective", study.objective.terms)]
+    criteria += [(name, {name: 1.0}) for name in study.objective.compare]
+    keys = sorted({tuple(r[g] for g in groups) for r in rows})
+    out = []
+    for key in keys:
+        members = [r for r in rows if tuple(r[g] for g in groups) == key]
+        for label, terms in criteria:
+            scored = [(objective_value(r, terms), r) for r in members]
+            scored = [(v, r) for v, r in scored if math.isfinite(v)]
+            entry: dict[str, Any] = {**dict(zip(groups, key, strict=True)), "criterion": label}
+            if not scored:
+                out.append(entry | {"point": None, "value": None})
+                continue
+            value, row = max(scored, key=lambda vr: (vr[0], -int(vr[1]["point"])))
+            entry |= {"point": row["point"], **{n: row[n] for n in numeric}, "value": value}
+            out.append(entry)
+    return out
+
+
 def pareto_front(rows: Sequence[dict[str, Any]], metrics: Sequence[str]) -> list[dict[str, Any]]:
     """Feasible rows no other feasible row beats in every metric (``-name`` minimises), by first metric."""
     signs = [-1.0 if m.startswith("-") else 1.0 for m in metrics]
@@ -213,6 +258,7 @@ def check_parameters(study: Study, base: MillConfig, source: str) -> None:
         Parameter.ROD_MATERIAL: sorted(base.materials),
         Parameter.VIAL_MATERIAL: sorted(base.materials),
         Parameter.CAM_SHAPE: [c.value for c in CamShape],
+        Parameter.VARIANT: [v.value for v in ModelVariant],
     }
     for name, names in known.items():
         sweep = study.parameters.get(name)
@@ -230,6 +276,7 @@ __all__ = [
     "StudyResult",
     "StudyRunner",
     "check_parameters",
+    "findings",
     "grid_points",
     "objective_value",
     "pareto_front",

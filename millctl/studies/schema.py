@@ -68,9 +68,10 @@ class Parameter(enum.StrEnum):
     VIAL_RADIUS_MM = "vial_radius_mm"
     VIAL_MATERIAL = "vial_material"
     POWDER_CHARGE_G = "powder_charge_g"
+    VARIANT = "variant"
 
 
-CATEGORICAL = frozenset({Parameter.CAM_SHAPE, Parameter.ROD_MATERIAL, Parameter.VIAL_MATERIAL})
+CATEGORICAL = frozenset({Parameter.CAM_SHAPE, Parameter.ROD_MATERIAL, Parameter.VIAL_MATERIAL, Parameter.VARIANT})
 """Parameters that take names, not numbers: only ``values`` lists them."""
 INTEGER = frozenset({Parameter.N_RODS})
 """Parameters rounded to whole numbers (grid points and optimiser proposals)."""
@@ -111,8 +112,12 @@ class Metrics(_Strict):
     names: Annotated[list[str], Field(min_length=1)] | None = None
     revolutions: Annotated[float, Field(gt=0.0, le=1_000.0)] = 4.0
     """Level (c): simulated time per point, in revolutions of the vial."""
-    cam_phases: Annotated[int, Field(ge=1, le=64)] = 4
-    """Level (b): cam phases sampled per revolution summary."""
+    cam_phases: Annotated[int, Field(ge=1, le=256)] | None = None
+    """Level (b): a fixed number of cam phases; default: integrate over the phase to ``cam_phase_rtol``."""
+    cam_phase_rtol: Annotated[float, Field(gt=0.0, le=0.5)] = 0.01
+    """Level (b): stated error of the cam-phase integral (relative, milling power and detaching share)."""
+    slip_phases: Annotated[int, Field(ge=1, le=64)] = 8
+    """Level (s): cam phases ridden with slip per point."""
 
 
 class Constraints(_Strict):
@@ -126,6 +131,10 @@ class Constraints(_Strict):
     """Structural limit on the vibration speed (rpm)."""
     max_spring_force_n: Annotated[float, Field(gt=0.0)] | None = None
     """Structural limit on the spring force amplitude k·r_d (N)."""
+    cam_contact: bool = False
+    """The roller stays on the cam at every cam phase (docs/model.md#structural-loads)."""
+    contact_fatigue: bool = False
+    """The cam–roller contact pressure stays at or below its endurance limit (infinite life)."""
 
 
 class Objective(_Strict):
@@ -135,6 +144,8 @@ class Objective(_Strict):
     minimize: str | None = None
     weights: dict[str, float] | None = None
     """Maximise Σ weight·metric (a negative weight penalises)."""
+    compare: list[str] = []
+    """Metrics also maximised, each on its own, for the findings (e.g. the same power with slip)."""
 
     @model_validator(mode="after")
     def _exactly_one(self) -> Objective:

@@ -5,14 +5,21 @@ configuration), so that a rerun resumes only the study that wrote it: finished
 points are read back and not recomputed. CSV rows are appended and flushed as
 points finish (a cut-off last line is dropped on resume); Parquet is rewritten
 atomically after each batch, so an interruption leaves the last complete file.
+
+One run at a time per file: :meth:`ResultsStore.lock` takes an exclusive ``fcntl`` lock on
+``FILE.lock`` (next to it, holding the runner's PID) for as long as the run lasts; a second run
+on the same file is refused with the holder's PID. The kernel drops the lock when the holder
+exits, however it exits (SIGKILL included), so a stale lock file never blocks.
 """
 
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import json
 import math
+import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -22,7 +29,7 @@ from millctl.errors import InvalidInputError
 
 FINGERPRINT_KEY = "millctl.study.fingerprint"
 CSV_MARK = "# millctl study fingerprint="
-TEXT_COLUMNS = frozenset({"key", "violations", "cam_shape", "rod_material", "vial_material"})
+TEXT_COLUMNS = frozenset({"key", "violations", "cam_shape", "rod_material", "vial_material", "variant"})
 BOOL_COLUMNS = frozenset({"feasible"})
 INT_COLUMNS = frozenset({"point", "events", "n_rods"})
 
@@ -60,6 +67,42 @@ class ResultsStore:
         self.csv = self.path is not None and self.path.suffix.lower() == ".csv"
         self.rows: dict[str, dict[str, Any]] = {}
         self._columns: list[str] | None = None
+        self._lock_fd: int | None = None
+
+    # ------------------------------------------------------------------ one run per file
+    @property
+    def lock_path(self) -> Path | None:
+        """``FILE.lock`` beside the results file (None in memory)."""
+        return None if self.path is None else self.path.with_name(self.path.name + ".lock")
+
+    def lock(self) -> None:
+        """Hold the results file for this process; refuse, naming the holder's PID, while another run holds it."""
+        where = self.lock_path
+        if where is None or self._lock_fd is not None:
+            return
+        try:
+            fd = os.open(where, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise InvalidInputError(f"cannot lock results file {self.path} ({where}: {exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise InvalidInputError(
+                f"results file {self.path} is in use by another study run (PID {holder}, lock {where}): "
+                "wait for it to finish or stop it, or give another --out"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._lock_fd = fd
+
+    def unlock(self) -> None:
+        """Let the results file go (the lock file stays; an unheld lock blocks nobody)."""
+        if self._lock_fd is not None:
+            os.ftruncate(self._lock_fd, 0)
+            os.close(self._lock_fd)
+            self._lock_fd = None
 
     # ------------------------------------------------------------------ reading
     def resume(self) -> int:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from bench import cli, levels, node_budget, report, work_precision
+from bench import cli, levels, node_budget, report, targets, work_precision
 from bench.common import corrected_model
 from bench.scenes import hard_scenes, lhs_scenes
 from millctl.physics.methods import ImpactEvent
@@ -184,24 +184,82 @@ def test_millctl_bench_is_an_alias(tmp_path: Path, capsys: pytest.CaptureFixture
     assert capsys.readouterr().out.startswith("# Benchmarks")
 
 
-def test_study_section_reports_points_and_events_per_core() -> None:
+def _study_results() -> dict[str, object]:
+    parallel = {
+        "points": 144,
+        "per_point_s": 0.05,
+        "local": {"serial_s": [7.0, 7.2, 7.1], "pool_s": [4.0, 4.1, 3.9], "efficiency": 0.87, "speedup": 1.73,
+                  "startup_s": 1.5},
+        "dask": {"serial_s": [7.0], "pool_s": [5.0], "efficiency": 0.7, "speedup": 1.4, "startup_s": 3.0},
+        "rule_points": {"local": 240, "dask": 480},
+    }  # fmt: skip
+    return {
+        "arrays": {"points": 10_000, "cam_phases": 4, "phases_per_point": 4.0, "cpu_s": 0.05, "wall_s": 0.1,
+                   "points_per_cpu_s": 2e5},
+        "arrays_integrated": {"points": 10_000, "cam_phases": 0, "phases_per_point": 66.4, "cpu_s": 5.0,
+                              "wall_s": 5.5, "points_per_cpu_s": 2e3},
+        "runner": {"points": 10_000, "cpu_s": 0.5, "wall_s": 1.0, "points_per_cpu_s": 2e4},
+        "offline": {"points": 9, "events": 300, "cpu_s": 1.0, "wall_s": 2.0, "events_per_cpu_s": 300.0},
+        "parallel": parallel,
+    }
+
+
+def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_workers() -> None:
     from bench import study
 
-    def run(points: int, events: int, workers: int, elapsed: float, name: str) -> dict[str, object]:
-        return {
-            "points": points, "events": events, "workers": workers, "backend": name, "elapsed_s": elapsed,
-            "points_per_s": points / elapsed, "events_per_s": events / elapsed,
-            "points_per_s_per_core": points / elapsed / workers, "events_per_s_per_core": events / elapsed / workers,
-        }  # fmt: skip
-
-    res = {
-        "map": run(10_000, 40_000, 2, 100.0, "local"),
-        "baseline": run(100, 400, 1, 2.0, "serial"),
-        "offline": run(9, 300, 1, 1.0, "serial"),
-        "parallel_efficiency": 1.0,
-        "speedup_vs_one_worker": 2.0,
-    }
-    text = "\n".join(study.report(res))
-    assert "| map 100 × 100 | 10,000 | local × 2 | 100.0 s | 100 | 50 | 200 |" in text
-    assert "per-core efficiency 100%" in text
+    text = "\n".join(study.report(_study_results()))
+    assert "| 100 × 100 map, `evaluate_arrays`, 4 cam phases | 10,000 | 0.05 s | 0.1 s | 2e+05 |" in text
+    integrated = "| the same integrated over the cam phase to 1 % (66 phases a point) | 10,000 | 5 s | 5.5 s | 2e+03 |"
+    assert integrated in text
+    assert "| 2 local processes | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 240 |" in text
+    assert "| 2-worker local Dask cluster | 7 s | 5 s | 1.40× | 70% | 3 s | 480 |" in text
+    assert "N·c ≥ 4·w·S" in text and "two workers pay from 240 / 480 level-(c) points" in text
+    assert study.worth_workers_rule(0.05, 1.5, 2) == 240  # 4 · 2 · 1.5 s / 0.05 s
     assert "study" in cli.build_parser().format_help()
+
+
+def test_every_issue_40_target_is_printed_with_measured_target_and_met() -> None:
+    res = {"command": "t", "quick": True, "duration_s": 0.0, "machine": _machine(), "study": _study_results()}
+    res["compiled"] = {
+        "batch": {"one": {"events_per_cpu_s": 6e5}, "all": {"events_per_cpu_s": 1.5e5}},
+        "public_api": {"us_per_event": 2.5},
+    }
+    res["loads"] = {"compiled": {"loadavg": [3.5, 3.0, 2.0], "cpus": 2}, "study": {"loadavg": [4.25, 3.0, 2.0]}}
+    text = "\n".join(targets.report(res))
+    assert text.startswith("## Issue 40 targets")
+    assert "| batch kernel, one rod's event (events/s/core) | 6e+05 | ≥ 5e+05 | yes |" in text
+    assert "| batch kernel, a whole six-rod scene (scenes/s/core) | 1.5e+05 | ≥ 2e+05 | **no** |" in text
+    assert "| one event through the public API (µs) | 2.5 | ≤ 3 | yes |" in text
+    assert "| 100×100 level-(b) map, 4 cam phases (points/s/core) | 2e+05 | ≥ 1e+05 | yes |" in text
+    assert (
+        "| 100×100 level-(b) map, integrated over the cam phase to 1 % (points/s/core) | 2e+03 | ≥ 1e+05 | **no** |"
+        in text
+    )
+    assert "| parallel efficiency, 2-worker local Dask cluster (share) | 0.7 | ≥ 0.8 | **no** |" in text
+    assert "| level (c) simulation (events/s/core) | 300 | ≥ 1e+05 | **no** |" in text
+    assert "compiled 3.50; study 4.25" in text
+
+
+def test_write_docs_refuses_the_figures_of_a_loaded_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    docs = tmp_path / "benchmarks.md"
+    docs.write_text("the committed figures\n")
+    monkeypatch.setattr(cli, "DOCS", docs)
+    machine = _machine() | {"cpu_count": 2, "loadavg": [16.0, 15.0, 14.0]}
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps({"command": "t", "quick": True, "duration_s": 0.0, "machine": machine}))
+    assert cli.main(["--from-json", str(path), "--write-docs", "--plots", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "1-minute load average was 16.00 at the start of this run on 2 CPUs, above the threshold 1.50" in err
+    assert docs.read_text() == "the committed figures\n"
+    quiet = machine | {"loadavg": [0.3, 0.2, 0.1]}
+    run = {"command": "t", "quick": True, "duration_s": 0.0, "machine": quiet}
+    path.write_text(json.dumps(run | {"loads": {"compiled": {"loadavg": [9.0, 3.0, 1.0], "cpus": 2}}}))
+    assert cli.main(["--from-json", str(path), "--write-docs", "--plots", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "was 9.00 at the start of compiled of this run on 2 CPUs, above the threshold 5.50" in err
+    # a piece may start with the previous one's workers and hil processes still in the average
+    path.write_text(json.dumps(run | {"loads": {"compiled": {"loadavg": [4.0, 3.0, 1.0], "cpus": 2}}}))
+    assert cli.main(["--from-json", str(path), "--write-docs", "--plots", str(tmp_path)]) == 0
+    assert docs.read_text().startswith("# Benchmarks")

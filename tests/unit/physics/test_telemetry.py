@@ -136,3 +136,22 @@ def test_compiled_summary_is_the_reference_summary(set_a: MillModel, variant: st
                     assert math.isnan(b), (w_r, w_v, name)
                 else:
                     assert a == pytest.approx(b, rel=1e-9, abs=1e-30), (w_r, w_v, name)
+
+
+def test_the_odd_phases_of_a_doubling_interleave_to_the_doubled_call_bit_for_bit(config: MillConfig) -> None:
+    import numpy as np
+
+    from millctl.physics import kernels
+    from millctl.studies.arrays import FLIGHT_CAP_S, PointArrays
+
+    model = MillModel.from_config(config)
+    points = PointArrays(config, model, rpm_to_rad_s(np.array([60.0, 200.0, 5.0])), rpm_to_rad_s(np.full(3, 800.0)))
+    start, pinned = points.start_angles()
+    rows, mu = points.rows(start), model.powder_friction
+    eight = kernels.telemetry_batch(rows, start, pinned, 8, FLIGHT_CAP_S, mu)
+    odd = kernels.telemetry_batch(rows, start, pinned, 8, FLIGHT_CAP_S, mu, odd_of_double=True)
+    sixteen = kernels.telemetry_batch(rows, start, pinned, 16, FLIGHT_CAP_S, mu)
+    both = np.empty_like(sixteen)
+    both[:, 0::2], both[:, 1::2] = eight, odd
+    assert np.array_equal(both, sixteen, equal_nan=True)
+    assert not np.array_equal(odd, eight, equal_nan=True)  # the odd phases are new samples

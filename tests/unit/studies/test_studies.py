@@ -242,3 +242,31 @@ def test_results_are_never_renamed_over_a_pipe_or_a_directory(tmp_path: Path, ki
     with pytest.raises(InvalidInputError, match="not a regular file"):
         ResultsStore(target, "x")
     assert target.exists() and not target.is_file()
+
+
+def test_a_study_over_both_models_resumes_from_its_csv(tmp_path: Path, config: MillConfig) -> None:
+    text = """
+[study]
+name = "both models"
+[parameters.variant]
+values = ["paper", "corrected"]
+[parameters.rotary_rpm]
+values = [80.0, 180.0]
+[parameters.vibration_rpm]
+values = [800.0]
+[metrics]
+names = ["milling_power_w"]
+cam_phases = 2
+[objective]
+maximize = "milling_power_w"
+"""
+    study_file = write(tmp_path, "variants.toml", text)
+    path = tmp_path / "results.csv"
+    store = ResultsStore(path, "x")
+    first = run(study_file, config, store=store)
+    assert {r["variant"] for r in first.rows} == {"paper", "corrected"}
+    again = ResultsStore(path, store.fingerprint)
+    assert again.resume() == len(first.rows) == 4
+    resumed = run(study_file, config, store=again)
+    assert resumed.reused == 4 and resumed.computed == 0
+    same_rows(first.rows, resumed.rows)

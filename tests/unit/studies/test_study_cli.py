@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import NamedTuple
 
@@ -10,7 +11,10 @@ import pytest
 
 from millctl.cli import main
 from millctl.config import MillConfig
+from millctl.physics import structure as st
 from millctl.studies import SerialBackend, Study, StudyRunner, load_study
+from millctl.studies.schema import Parameter
+from millctl.units import rad_s_to_rpm
 from tests.conftest import CONFIG_FILE, REPO
 
 STUDIES = REPO / "config" / "studies"
@@ -71,25 +75,77 @@ def test_bad_arguments_exit_1(grid_file: Path, tmp_path: Path, capsys: pytest.Ca
     assert code == 1 and "no such file" in res.err
 
 
-@pytest.mark.parametrize(
-    ("name", "best"),
-    [("paper-operating-point.toml", (188.0, 800.0)), ("corrected-operating-point.toml", None)],
-)
-def test_shipped_studies_near_the_papers_point(name: str, best: tuple[float, float] | None, config: MillConfig) -> None:
-    """The shipped studies on a few points around the paper's 200/800 rpm (the full grids run from the CLI)."""
+def _small(name: str, rotary: list[float], vibration: list[float], **constraints: object) -> Study:
+    """A shipped study on a few of its points (the full grid runs from the CLI), slip on 2 phases."""
     data = load_study(STUDIES / name).model_dump(mode="json")
-    data["parameters"] = {"rotary_rpm": {"values": [184.0, 188.0, 192.0]}, "vibration_rpm": {"values": [750.0, 800.0]}}
-    small = Study.model_validate(data)
-    result = StudyRunner(small, config, name).run(SerialBackend())
-    if best is not None:
-        assert result.best is not None, "no feasible point among the shipped study's"
-        # the paper's reasoning reproduces its conclusion: 200/800 less the interlock's 5 % margin
-        assert (result.best["rotary_rpm"], result.best["vibration_rpm"]) == best
-        # ... where the paper's own model, run in time, and the corrected laws disagree
-        assert result.best["margin_paper_every_cycle_rpm"] < 0.0
-        assert result.best["margin_corrected_every_phase_rpm"] < 0.0
-    else:
-        # the corrected every-phase envelope excludes the whole neighbourhood of the paper's point
-        assert result.best is None
-        assert len(result.rows) == 6  # the 3 × 2 grid above, each point judged
-        assert all("corrected-every-phase" in r["violations"] for r in result.rows)
+    data["parameters"] |= {"rotary_rpm": {"values": rotary}, "vibration_rpm": {"values": vibration}}
+    data["metrics"]["slip_phases"] = 2
+    data["constraints"] |= constraints
+    return Study.model_validate(data)
+
+
+def _with(config: MillConfig, **spring: float) -> MillConfig:
+    data = config.model_dump(mode="json")
+    data["mill"]["spring"] |= spring
+    return MillConfig.model_validate(data)
+
+
+def test_the_shipped_operating_point_study_has_no_input_that_fixes_its_answer() -> None:
+    study = load_study(STUDIES / "paper-operating-point.toml")
+    c = study.constraints
+    assert c.max_vibration_rpm is None and c.max_spring_force_n is None and str(c.law) == "none"
+    assert c.cam_contact and c.contact_fatigue  # the structural constraint, in physical terms
+    assert study.study.rotary_rpm is None and study.study.vibration_rpm is None
+    assert study.objective.terms == {"milling_power_w": 1.0} and study.objective.compare == ["slip_milling_power_w"]
+    assert study.parameters[Parameter.VARIANT].values == ["paper", "corrected"]
+
+
+def test_the_structural_limit_is_the_roller_leaving_the_cam(config: MillConfig) -> None:
+    """The best cam speed is the fastest below the follower jump computed from the structure, not an input."""
+    jump_rpm = rad_s_to_rpm(st.follower_jump_rad_s(st.StructureParams.from_config(config)))
+    below = 100.0 * math.floor(jump_rpm / 100.0)
+    above = below + 100.0
+    result = StudyRunner(_small("paper-operating-point.toml", [200.0], [below - 100.0, below, above]), config, "x").run(
+        SerialBackend()
+    )
+    for row in result.rows:
+        assert (row["vibration_rpm"] > jump_rpm) == ("roller leaves the cam" in row["violations"])
+    paper = next(f for f in result.findings if f["variant"] == "paper" and f["criterion"] == "objective")
+    assert paper["vibration_rpm"] == below
+
+
+def test_old_bounds_and_k_do_not_move_the_corrected_optimum(config: MillConfig) -> None:
+    """k enters only the paper's eq. 7, and a bound on ω_v above the structural limit changes nothing."""
+    rotary, vibration = [40.0, 50.0, 200.0], [800.0, 900.0, 1100.0]
+
+    def best(study: Study, cfg: MillConfig) -> tuple[float, float]:
+        found = StudyRunner(study, cfg, "x").run(SerialBackend()).findings
+        f = next(f for f in found if f["variant"] == "corrected" and f["criterion"] == "objective")
+        return f["rotary_rpm"], f["vibration_rpm"]
+
+    plain = best(_small("paper-operating-point.toml", rotary, vibration), config)
+    assert plain == best(_small("paper-operating-point.toml", rotary, vibration, max_vibration_rpm=1100.0), config)
+    assert plain == best(
+        _small("paper-operating-point.toml", rotary, vibration), _with(config, stiffness_n_per_m=500.0)
+    )
+
+
+def test_findings_cover_both_models_with_and_without_slip(config: MillConfig) -> None:
+    result = StudyRunner(_small("paper-operating-point.toml", [200.0], [800.0]), config, "x").run(SerialBackend())
+    got = {(f["variant"], f["criterion"]) for f in result.findings}
+    assert got == {(v, c) for v in ("paper", "corrected") for c in ("objective", "slip_milling_power_w")}
+    for f in result.findings:
+        row = next(r for r in result.rows if r["point"] == f["point"])
+        metric = "milling_power_w" if f["criterion"] == "objective" else f["criterion"]
+        assert f["value"] == row[metric]
+
+
+def test_the_corrected_study_is_bounded_by_its_envelope_and_the_structure(config: MillConfig) -> None:
+    data = load_study(STUDIES / "corrected-operating-point.toml").model_dump(mode="json")
+    assert data["constraints"]["max_vibration_rpm"] is None
+    data["parameters"] = {"rotary_rpm": {"values": [40.0, 188.0]}, "vibration_rpm": {"values": [800.0, 1100.0]}}
+    result = StudyRunner(Study.model_validate(data), config, "x").run(SerialBackend())
+    assert result.best is not None and (result.best["rotary_rpm"], result.best["vibration_rpm"]) == (40.0, 800.0)
+    by_speed = {(r["rotary_rpm"], r["vibration_rpm"]): r["violations"] for r in result.rows}
+    assert "corrected-every-phase" in by_speed[(188.0, 800.0)]
+    assert "roller leaves the cam" in by_speed[(40.0, 1100.0)]

@@ -1,0 +1,219 @@
+"""Detachment: the certified first falling zero of N(t)/m (eqs 4–7; the reference is :mod:`millctl.physics.detachment`).
+
+A Taylor bound skips the cells where N provably stays positive, critical points split the rest into
+monotone pieces, Brent's method finds the root (:mod:`.roots`); searched one window (the shorter of a
+revolution and a cam period) at a time, from where N can first vanish (:func:`_held_until`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from millctl.physics.kernels.layout import (
+    _F_DN,
+    _F_N,
+    _F_NEG_DN,
+    _F_NEG_N,
+    _MAX_DEPTH,
+    _N,
+    _RTOL,
+    _STATE_COLUMNS,
+    _T_COUNT,
+    _TA,
+    _TP,
+    _TW,
+    _TWO_PI,
+    _WR,
+    _WV,
+    FloatArray,
+)
+from millctl.physics.kernels.roots import _brentq, _xtol
+from millctl.physics.kernels.trig import _trig, _trig012, _trig_bound, _trig_rows
+
+
+@njit(cache=True)
+def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-def]
+    """On [a, b] f' is monotone: split at f's critical point and look for a falling zero (inf: none)."""
+    f_code, df_code = (_F_N, _F_DN) if sign > 0.0 else (_F_NEG_N, _F_NEG_DN)
+    fa, d1a, _ = _trig012(tr, i, a, sign)
+    fb, d1b, _ = _trig012(tr, i, b, sign)
+    if fa > 0.0 and fb < 0.0:  # f' monotone: exactly one falling zero in [a, b], no need for the critical point
+        return _brentq(f_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
+    if fa > 0.0 and fb > 0.0 and d1a < 0.0 < d1b:
+        # convex here: f lies above both end tangents; where they cross is a lower bound on min f
+        t_x = (fb - fa + d1a * a - d1b * b) / (d1a - d1b)
+        if fa + d1a * (t_x - a) > 1e-13 * (tr[i, 0] + _trig_bound(tr, i, 0)):
+            return math.inf
+    split = b  # f's critical point when f' changes sign in [a, b]: the two pieces [a, split], [split, b]
+    if (d1a < 0.0 < d1b) or (d1a > 0.0 > d1b):
+        split = _brentq(df_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
+    for s, e in ((a, split), (split, b)):
+        if s >= e:
+            continue
+        fs, fe = _trig(tr, i, s, 0, sign), _trig(tr, i, e, 0, sign)
+        if fs > 0.0 and fe < 0.0:
+            return _brentq(f_code, p, st, tr, i, 0, s, e, _xtol(s, e, 0.0), _RTOL)
+        if fs > 0.0 and fe == 0.0 and _trig(tr, i, e, 1, sign) < 0.0:
+            return e
+    return math.inf
+
+
+@njit(cache=True)
+def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
+    """First t in (t0, t1] where sign·N falls through zero, given sign·N(t0) > 0; inf if it stays ≥ 0."""
+    m2, m3 = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
+    w_max = 0.0
+    for k in range(int(tr[i, _T_COUNT])):
+        if tr[i, _TA + k] != 0.0:
+            w_max = max(w_max, abs(tr[i, _TW + k]))
+    cells = 1 if w_max == 0.0 else int(min(max(math.ceil((t1 - t0) * w_max * 2.0 / math.pi), 1), 4096))
+    width = (t1 - t0) / cells
+    stack = np.empty((2 * _MAX_DEPTH + 4, 3))  # (a, b, depth) of the intervals still to look at, leftmost on top
+    for c in range(cells):
+        a = t0 + c * width
+        b = t1 if c == cells - 1 else t0 + (c + 1) * width
+        stack[0, 0], stack[0, 1], stack[0, 2] = a, b, 0.0
+        top = 1
+        while top > 0:
+            top -= 1
+            a, b, depth = stack[top, 0], stack[top, 1], int(stack[top, 2])
+            h = b - a
+            mid = 0.5 * (a + b)
+            f0, f1, f2 = _trig012(tr, i, mid, sign)
+            if f0 - abs(f1) * 0.5 * h - m2 * h * h * 0.125 > 0.0:
+                continue
+            if abs(f2) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
+                root = _monotone_pieces_root(p, st, tr, i, sign, a, b)
+                if root < math.inf:
+                    return root
+                continue
+            stack[top, 0], stack[top, 1], stack[top, 2] = mid, b, depth + 1
+            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = a, mid, depth + 1
+            top += 2
+    return math.inf
+
+
+@njit(cache=True)
+def _revolution_s(p):  # type: ignore[no-untyped-def]
+    """One revolution; one cam period with the vial at rest; 1 s when both stand still."""
+    if p[_WR] > 0.0:
+        return _TWO_PI / p[_WR]
+    if p[_WV] > 0.0:
+        return _TWO_PI / p[_WV]
+    return 1.0
+
+
+@njit(cache=True)
+def _window_s(p):  # type: ignore[no-untyped-def]
+    """The detachment search's window: the shorter of one revolution and one cam period."""
+    w = _revolution_s(p)
+    if p[_WV] > 0.0:
+        w = min(w, _TWO_PI / p[_WV])
+    return w
+
+
+@njit(cache=True)
+def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
+    """A time up to which f > 0 is certified from t on by its first term alone, else t.
+
+    f = c + a_0 cos(w_0 t + φ_0) + (other terms, ≤ Σ|a_k| together) > 0 while
+    cos(w_0 t + φ_0) > q = (Σ_{k≥1}|a_k| − c)/a_0; for N/m, a_0 cos(…) = g cos(θ + π/2) is the slow
+    part, so this is the arc of the wall where no cam phase can detach the rod.
+    """
+    w, g = tr[i, _TW], tr[i, _TA]
+    if w <= 0.0 or g <= 0.0:
+        return t
+    rest = 0.0
+    for k in range(1, int(tr[i, _T_COUNT])):
+        rest += abs(tr[i, _TA + k])
+    q = (rest - tr[i, 0]) / g
+    if q >= 1.0:
+        return t
+    if q < -1.0:
+        return math.inf
+    edge = math.acos(q)
+    r = (w * t + tr[i, _TP] + math.pi) % _TWO_PI - math.pi
+    if -edge < r < edge:
+        return t + (edge - r) / w * (1.0 - 1e-9)
+    return t
+
+
+@njit(cache=True)
+def _falling_zero_windowed(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
+    """_falling_zero over [t0, t1], one window at a time from where N can first vanish, stopping at the first root."""
+    w = _window_s(p)
+    a = t0
+    while a < t1:
+        if sign > 0.0:
+            a = max(a, _held_until(tr, i, a))
+            if a >= t1:
+                return math.inf
+        b = min(a + w, t1)
+        if _trig(tr, i, a, 0, sign) <= 0.0:
+            return a
+        root = _falling_zero(p, st, tr, i, sign, a, b)
+        if root < math.inf:
+            return root
+        a = b
+    return math.inf
+
+
+@njit(cache=True)
+def _nudge(tr, i, t, horizon, sign):  # type: ignore[no-untyped-def]
+    """The first time from t on where sign·N > 0, stepping geometrically off a root (inf: none)."""
+    step = max(abs(t), 1.0) * 1e-13
+    while _trig(tr, i, t, 0, sign) <= 0.0:
+        if t >= horizon:
+            return math.inf
+        t, step = t + step, 2.0 * step
+    return t
+
+
+@njit(cache=True)
+def _rearm(p, st, tr, i, t_start, horizon):  # type: ignore[no-untyped-def]
+    """Skip the current dip of N: the first time after t_start at which N > 0 again after having been < 0."""
+    t = t_start
+    if _trig(tr, i, t, 0, 1.0) >= 0.0:
+        down = _falling_zero_windowed(p, st, tr, i, 1.0, t, horizon) if _trig(tr, i, t, 0, 1.0) > 0.0 else t
+        if down == math.inf:
+            return math.inf
+        t = _nudge(tr, i, down, horizon, -1.0)
+        if t == math.inf:
+            return math.inf
+    up = _falling_zero_windowed(p, st, tr, i, -1.0, t, horizon)
+    return math.inf if up == math.inf else _nudge(tr, i, up, horizon, 1.0)
+
+
+@njit(cache=True)
+def _never_detaches(tr, i):  # type: ignore[no-untyped-def]
+    """Certified: N ≥ c − Σ|a_k| > 0 at every time."""
+    return tr[i, 0] - _trig_bound(tr, i, 0) > 0.0
+
+
+@njit(cache=True)
+def _detachment_times(p, horizon):  # type: ignore[no-untyped-def]
+    n = int(p[_N])
+    tr = _trig_rows(p, n)
+    st = np.zeros((n, _STATE_COLUMNS))
+    out = np.full(n, math.inf)
+    for i in range(n):
+        if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
+            out[i] = 0.0
+        elif not _never_detaches(tr, i):
+            out[i] = _falling_zero_windowed(p, st, tr, i, 1.0, 0.0, horizon)
+    return out
+
+
+def detachment_times(row: FloatArray, horizon_s: float) -> FloatArray:
+    """Every rod's first detachment in [0, horizon] (s; inf: pinned), compiled.
+
+    The shared search the benchmark times on its own (zero-length departures are not resolved here).
+    """
+    result: FloatArray = _detachment_times(np.ascontiguousarray(row, dtype=np.float64), float(horizon_s))
+    return result
+
+
+__all__ = ["detachment_times"]

@@ -1,0 +1,268 @@
+"""The event loop up to the first impact (the reference is :mod:`millctl.physics.simulate` with stop_after_first).
+
+Every rod starts pinned at eq. 11's angle; rods detach at their own times (``rods="all"``) or only
+rod 0 does, the others held (``rods="one"``). The first contact ends the loop: its kinematics and
+energy (eq. 19, printed ½ m |v|² or corrected ½ m_eff (1 − e²) v_n²) fill a result row (:data:`OUT`).
+A zero-length flight (the package docstring) is no impact. :func:`first_impacts` is the batch entry point.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from millctl.physics.kernels.contacts import _earliest_contact
+from millctl.physics.kernels.detach import _falling_zero_windowed, _never_detaches, _rearm, _revolution_s, _window_s
+from millctl.physics.kernels.layout import (
+    _A0,
+    _E,
+    _G,
+    _L,
+    _M,
+    _N,
+    _O_ALD,
+    _O_BACKED,
+    _O_ENERGY,
+    _O_FOUND,
+    _O_PARTNER,
+    _O_ROD,
+    _O_SPEED,
+    _O_T,
+    _O_TD0,
+    _O_TDEP,
+    _O_THC,
+    _O_THD,
+    _O_VN,
+    _O_VT,
+    _O_X,
+    _O_Y,
+    _O_ZERO,
+    _PAPER,
+    _R0,
+    _RD,
+    _RR,
+    _S_CA,
+    _S_FLY,
+    _S_ND,
+    _S_SA,
+    _S_T0,
+    _S_TH,
+    _S_UX,
+    _S_UY,
+    _S_X,
+    _S_Y,
+    _STATE_COLUMNS,
+    _TH0,
+    _TRIG_COLUMNS,
+    _TWO_PI,
+    _WR,
+    _WV,
+    OUT,
+    PARAMS,
+    WALL,
+    FloatArray,
+)
+from millctl.physics.kernels.motion import _rel
+from millctl.physics.kernels.trig import _trig, _trig_rows
+
+
+@njit(cache=True)
+def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
+    """Rod i leaves the wall at t: its flight state (eq. 2's velocity relative to the vial) and n_d.
+
+    Corrected variant at a falling zero of N: n_d = 0 exactly (the departure root is triple by construction);
+    a rod that starts unsupported (N < 0 at the start) or the paper's law: n_d = r0·N_true/m.
+    """
+    x, y, vx, vy = _rel(p, st, i, t)
+    st[i, _S_FLY], st[i, _S_T0] = 1.0, t
+    st[i, _S_X], st[i, _S_Y], st[i, _S_UX], st[i, _S_UY] = x, y, vx, vy
+    alpha = p[_A0] + p[_WV] * t
+    st[i, _S_SA], st[i, _S_CA] = math.sin(alpha), math.cos(alpha)
+    theta = math.atan2(y, x)
+    g_eff = p[_G] - p[_RD] * p[_WV] ** 2 * math.sin(p[_A0] + p[_WV] * t)
+    true_n = p[_R0] * p[_WR] ** 2 - g_eff * math.sin(theta)
+    exact = p[_PAPER] == 0.0 and not unsupported
+    st[i, _S_ND] = 0.0 if exact else p[_R0] * true_n
+
+
+@njit(cache=True)
+def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
+    x, y, _, _ = _rel(p, st, i, t)
+    st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
+
+
+@njit(cache=True)
+def _scratch(n_max):  # type: ignore[no-untyped-def]
+    """Work arrays of _event for up to n_max rods, made once per batch (no allocation per scene).
+
+    (pair columns, pair rod ids, rod columns, rod ids, trig rows, rod states, rod detachment columns)
+    """
+    pairs = n_max * (n_max + 1)
+    return (
+        np.empty((pairs, 5)),
+        np.empty((pairs, 2), dtype=np.int64),
+        np.empty((n_max, 6)),
+        np.empty(n_max, dtype=np.int64),
+        np.zeros((n_max, _TRIG_COLUMNS)),
+        np.empty((n_max, _STATE_COLUMNS)),
+        np.empty((n_max, 3)),
+    )
+
+
+@njit(cache=True)
+def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore[no-untyped-def]
+    """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring.
+
+    ``scratch``: :func:`_scratch` for at least this scene's number of rods.
+    """
+    n = int(p[_N])
+    tr = _trig_rows(p, n, scratch[4])
+    st = scratch[5][:n]
+    st[:, :] = 0.0
+    det_columns = scratch[6]
+    det_t, det_lb, unsupported = det_columns[:n, 0], det_columns[:n, 1], det_columns[:n, 2]
+    det_t[:] = math.inf
+    det_lb[:] = horizon
+    unsupported[:] = 0.0
+    window = _window_s(p)
+    for i in range(n):
+        st[i, _S_TH] = p[_TH0] + i * 2.0 * math.pi / n
+        if i > 0 and not all_rods:
+            continue
+        if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
+            det_t[i] = 0.0
+            unsupported[i] = 1.0
+        elif not _never_detaches(tr, i):
+            det_lb[i] = 0.0
+    det_end = horizon if all_rods else min(horizon, _revolution_s(p))
+    out[:] = math.nan
+    out[_O_FOUND], out[_O_ZERO] = 0.0, 0.0
+    t = 0.0
+    first_departure = math.inf
+    while True:
+        # the earliest known detachment, and the earliest end of a detachment search not yet extended
+        t_det, rod_det = math.inf, -1
+        lb, rod_lb = math.inf, -1
+        t_fly = math.inf
+        for i in range(n):
+            if det_t[i] < t_det:
+                t_det, rod_det = det_t[i], i
+            if det_t[i] == math.inf and det_lb[i] < min(det_end, lb):
+                lb, rod_lb = det_lb[i], i
+            if st[i, _S_FLY] != 0.0:
+                t_fly = min(t_fly, st[i, _S_T0])
+        contact_end = min(horizon, t_fly + flight_cap)
+        seg_end = min(t_det, lb, contact_end)
+        t_hit, rod, partner = math.inf, -1, -1
+        if t_fly < math.inf:
+            t_hit, rod, partner = _earliest_contact(p, st, tr, n, t, seg_end, tol, scratch)
+        if t_hit < math.inf:
+            if partner == WALL and t_hit == st[rod, _S_T0]:
+                # a zero-length flight is no impact: the rod stays held through this dip of N
+                _repin(p, st, rod, t_hit)
+                out[_O_ZERO] += 1.0
+                up = _rearm(p, st, tr, rod, t_hit, det_end)
+                det_t[rod] = _falling_zero_windowed(p, st, tr, rod, 1.0, up, det_end) if up < det_end else math.inf
+                det_lb[rod] = det_end
+                t = t_hit
+                continue
+            _contact(p, st, rod, partner, t_hit, out)
+            out[_O_TD0] = first_departure if first_departure < math.inf else math.nan
+            return
+        if seg_end >= contact_end and contact_end < min(t_det, lb):
+            out[_O_TD0] = first_departure if first_departure < math.inf else math.nan
+            return
+        if lb <= t_det and rod_lb >= 0:
+            a = det_lb[rod_lb]
+            b = min(a + window, det_end)
+            det_t[rod_lb] = _falling_zero_windowed(p, st, tr, rod_lb, 1.0, a, b)
+            det_lb[rod_lb] = b
+            t = max(t, a)
+            continue
+        if rod_det < 0:
+            out[_O_TD0] = first_departure if first_departure < math.inf else math.nan
+            return
+        _depart(p, st, tr, rod_det, t_det, unsupported[rod_det] != 0.0)
+        unsupported[rod_det] = 0.0
+        first_departure = min(first_departure, t_det)
+        det_t[rod_det] = math.inf
+        det_lb[rod_det] = det_end
+        t = t_det
+
+
+@njit(cache=True)
+def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
+    """Contact kinematics, lab contact point, absolute speed and energy (events.contact_kinematics, eq. 19)."""
+    x, y, vx, vy = _rel(p, st, i, t)
+    if j == WALL:
+        r = math.hypot(x, y)
+        nx, ny = x / r, y / r
+        rvx, rvy = vx + p[_WR] * y, vy - p[_WR] * x
+        backed = True
+    else:
+        xb, yb, vxb, vyb = _rel(p, st, j, t)
+        dx, dy = xb - x, yb - y
+        r = math.hypot(dx, dy)
+        nx, ny = dx / r, dy / r
+        rvx, rvy = vx - vxb, vy - vyb
+        backed = st[j, _S_FLY] == 0.0
+    v_n = rvx * nx + rvy * ny
+    alpha = p[_A0] + p[_WV] * t
+    yc = p[_L] - p[_RD] + p[_RD] * math.sin(alpha)
+    vyc = p[_RD] * p[_WV] * math.cos(alpha)
+    speed = math.hypot(vx, vy + vyc)
+    m = p[_M]
+    if p[_PAPER] != 0.0:
+        energy = 0.5 * m * speed * speed
+    else:
+        energy = 0.5 * (m if backed else 0.5 * m) * (1.0 - p[_E] ** 2) * v_n * v_n
+    out[_O_FOUND], out[_O_T], out[_O_ROD], out[_O_PARTNER] = 1.0, t, i, j
+    out[_O_X], out[_O_Y] = x + p[_RR] * nx, yc + y + p[_RR] * ny
+    out[_O_VN], out[_O_VT] = v_n, -rvx * ny + rvy * nx
+    out[_O_SPEED], out[_O_ENERGY], out[_O_BACKED] = speed, energy, 1.0 if backed else 0.0
+    t0 = st[i, _S_T0]
+    out[_O_TDEP] = t0
+    out[_O_THD] = math.atan2(st[i, _S_Y], st[i, _S_X])
+    out[_O_THC] = math.atan2(y, x)
+    out[_O_ALD] = (p[_A0] + p[_WV] * t0) % _TWO_PI
+
+
+@njit(cache=True)
+def _batch(rows, all_rods, horizon, flight_cap, tol):  # type: ignore[no-untyped-def]
+    out = np.empty((rows.shape[0], len(OUT)))
+    scratch = _scratch(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
+    for k in range(rows.shape[0]):
+        _event(rows[k], all_rods, horizon, flight_cap, tol, out[k], scratch)
+    return out
+
+
+def first_impacts(
+    rows: FloatArray,
+    *,
+    rods: str = "all",
+    horizon_s: float = 5.0,
+    flight_cap_s: float = math.inf,
+    tol_s: float = 0.0,
+) -> FloatArray:
+    """The batch entry point: the first impact of every scene row, one result row each (:data:`OUT` columns).
+
+    ``rows``: shape (scenes, len(PARAMS)) (:func:`scene_row`, :func:`scene_rows`).
+    ``rods``: ``"all"`` — every rod detaches at its own time (the same question as
+    ``methods.first_impact(scene, "exact")``); ``"one"`` — only rod 0 detaches, within
+    one revolution, the others are held on the wall (the node telemetry's sample).
+    ``horizon_s``: last time searched (s); ``flight_cap_s``: longest flight followed (s);
+    ``tol_s``: root finder's time tolerance (s; 0 ≈ 4 ulp). One core, scenes in order.
+    """
+    if rods not in ("all", "one"):
+        raise ValueError(f"rods = {rods!r}: choose 'all' or 'one'")
+    table = np.ascontiguousarray(rows, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] != len(PARAMS):
+        columns = ", ".join(PARAMS)
+        raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}) (columns: {columns}), got {table.shape}")
+    result: FloatArray = _batch(table, rods == "all", float(horizon_s), float(flight_cap_s), float(tol_s))
+    return result
+
+
+__all__ = ["first_impacts"]

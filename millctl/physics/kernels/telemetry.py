@@ -1,0 +1,204 @@
+"""Level (b): the node telemetry's cam-phase samples with the no-slip check of the carried rod (slip.py, telemetry.py).
+
+Sample k of a scene: rod 0 from its start angle with lift phase 2πk/K, its one-rod event
+(:mod:`.events`), and the first time the carried ride from the bottom needs a wall traction
+|F_t| > μN (:func:`_slip_onset`, two trig sums μN/m ∓ F_t/m searched like N). One scene
+(:func:`telemetry_samples`) or a batch of scenes (:func:`telemetry_batch`), no allocation per scene.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from millctl.physics.kernels.detach import _falling_zero_windowed, _revolution_s
+from millctl.physics.kernels.events import _event, _scratch
+from millctl.physics.kernels.layout import (
+    _A0,
+    _G,
+    _N,
+    _O_ENERGY,
+    _O_FOUND,
+    _O_PARTNER,
+    _O_T,
+    _O_TD0,
+    _O_TDEP,
+    _O_THC,
+    _O_THD,
+    _R0,
+    _RD,
+    _STATE_COLUMNS,
+    _T_COUNT,
+    _TH0,
+    _TRIG_COLUMNS,
+    _TWO_PI,
+    _WR,
+    _WV,
+    OUT,
+    PARAMS,
+    TELEMETRY,
+    WALL,
+    FloatArray,
+)
+from millctl.physics.kernels.trig import _set_term, _trig
+
+
+@njit(cache=True)
+def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
+    """Rows 0, 1 of ``rows``: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
+
+    N is the corrected law in both variants; F_t/m = g_eff cos θ (slip.traction_per_mass). The six terms
+    μg cos(θ + π/2) ∓ g cos θ, and the cam's ±½ r_d ω_v² pairs at ω_v ∓ ω_r, merge by a cos x + b sin x =
+    √(a² + b²) cos(x − atan2(b, a)) into three, the slow one first (as in N), so that the search skips the
+    arc where the slow term alone keeps the margin positive (:func:`.detach._held_until`).
+    """
+    wr, wv, a0, g = p[_WR], p[_WV], p[_A0], p[_G]
+    half = 0.5 * p[_RD] * wv * wv
+    scale = math.sqrt(1.0 + mu * mu)
+    for r in range(2):
+        sign = -1.0 if r == 0 else 1.0
+        rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 3.0
+        # μg cos(θ + π/2) + sign·g cos θ = g √(1 + μ²) cos(θ + atan2(μ, sign))
+        _set_term(rows, r, 0, g * scale, wr, theta0 + math.atan2(mu, sign))
+        # ½ r_d ω_v² (μ cos y − sign·sin y), y = (ω_v − ω_r) t + α0 − θ0
+        _set_term(rows, r, 1, half * scale, wv - wr, a0 - theta0 + math.atan2(sign, mu))
+        # −½ r_d ω_v² (μ cos y + sign·sin y), y = (ω_v + ω_r) t + α0 + θ0
+        _set_term(rows, r, 2, -half * scale, wv + wr, a0 + theta0 - math.atan2(sign, mu))
+    return rows
+
+
+@njit(cache=True)
+def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
+    """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never).
+
+    ``rows``: a (2, trig columns) work array; ``st``: a zeroed (1, state columns) one (unused by the search).
+    """
+    tr = _slip_rows(p, theta0, mu, rows)
+    onset = math.inf
+    for r in range(2):
+        if _trig(tr, r, 0.0, 0, 1.0) <= 0.0:
+            return 0.0
+        if t_end > 0.0:
+            onset = min(onset, _falling_zero_windowed(p, st, tr, r, 1.0, 0.0, t_end))
+    return onset
+
+
+@njit(cache=True)
+def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work, stride):  # type: ignore[no-untyped-def]
+    """The K telemetry samples of one scene into ``out`` (K rows of :data:`TELEMETRY`), no allocation.
+
+    ``work``: (event row, _scratch, scene row, bottom scene row, slip rows, slip state) from :func:`_telemetry_work`.
+    ``stride`` 2: the K odd phases 2π(2k + 1)/(2K) of 2K instead (the even ones are the K phases'), so a
+    doubling of K computes only the new samples, each bit for bit the sample of the 2K call.
+    """
+    ev, scratch, p, pb, slip_tr, slip_st = work
+    out[:, :] = math.nan
+    rev = _revolution_s(p_base)
+    lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
+    for k in range(phases):
+        p[:] = p_base
+        p[_TH0], p[_A0] = theta_start, _TWO_PI * (stride * k + stride - 1) / (stride * phases)
+        arc_end = rev
+        if pinned:
+            out[k, 0], out[k, 1] = 0.0, 0.0
+        else:
+            _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
+            detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
+            out[k, 0], out[k, 1] = ev[_O_FOUND], 1.0 if detached else 0.0
+            if ev[_O_FOUND] == 1.0:
+                arc_end = ev[_O_TDEP]
+                out[k, 2], out[k, 3], out[k, 4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
+                out[k, 5], out[k, 6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
+                out[k, 7] = ev[_O_THC]
+            elif detached:
+                arc_end = ev[_O_TD0]
+        # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
+        pb[:] = p
+        pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
+        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
+        if onset < math.inf:
+            out[k, 8] = onset
+            out[k, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+
+
+@njit(cache=True)
+def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
+    """The work arrays of :func:`_telemetry_into` for scenes of up to n_max rods (made once per batch)."""
+    return (
+        np.empty(len(OUT)),
+        _scratch(n_max),
+        np.empty(len(PARAMS)),
+        np.empty(len(PARAMS)),
+        np.zeros((2, _TRIG_COLUMNS)),
+        np.zeros((1, _STATE_COLUMNS)),
+    )
+
+
+@njit(cache=True)
+def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
+    out = np.empty((phases, len(TELEMETRY)))
+    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])), 1)
+    return out
+
+
+def telemetry_samples(
+    scene_row_: FloatArray, theta_start_rad: float, cam_phases: int, flight_cap_s: float, friction: float, pinned: bool
+) -> FloatArray:
+    """The node telemetry's K samples in one compiled call (columns :data:`TELEMETRY`).
+
+    Sample k: rod 0 pinned at ``theta_start_rad`` with cam phase 2πk/K, its one-rod event
+    (:func:`first_impacts`, ``rods="one"``) and the no-slip check of the same ride from the
+    bottom (slip.no_slip_check); ``pinned``: no phase can detach, only the check, over one revolution.
+    """
+    result: FloatArray = _telemetry(
+        np.ascontiguousarray(scene_row_, dtype=np.float64),
+        float(theta_start_rad),
+        int(cam_phases),
+        float(flight_cap_s),
+        float(friction),
+        bool(pinned),
+    )
+    return result
+
+
+@njit(cache=True)
+def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu, stride):  # type: ignore[no-untyped-def]
+    out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
+    work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
+    for s in range(rows.shape[0]):
+        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work, stride)
+    return out
+
+
+def telemetry_batch(
+    rows: FloatArray,
+    theta_start_rad: FloatArray,
+    pinned: NDArray[np.bool_],
+    cam_phases: int,
+    flight_cap_s: float,
+    friction: float,
+    odd_of_double: bool = False,
+) -> FloatArray:
+    """:func:`telemetry_samples` of many scenes in one compiled call: shape (scenes, K, len(TELEMETRY)).
+
+    ``rows`` (scenes, len(PARAMS)); ``theta_start_rad`` and ``pinned`` one per scene. The
+    design studies' level (b) (:mod:`millctl.studies.arrays`): no Python per scene.
+    ``odd_of_double``: the K odd phases of 2K (2π(2k + 1)/(2K)); with the K phases' samples
+    interleaved, exactly the 2K call's (the studies' cam-phase integral doubles K this way).
+    """
+    table = np.ascontiguousarray(rows, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] != len(PARAMS):
+        raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}), got {table.shape}")
+    start = np.ascontiguousarray(theta_start_rad, dtype=np.float64).reshape(table.shape[0])
+    flags = np.ascontiguousarray(pinned, dtype=np.bool_).reshape(table.shape[0])
+    stride = 2 if odd_of_double else 1
+    result: FloatArray = _telemetry_batch(
+        table, start, flags, int(cam_phases), float(flight_cap_s), float(friction), stride
+    )
+    return result
+
+
+__all__ = ["telemetry_batch", "telemetry_samples"]

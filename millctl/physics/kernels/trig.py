@@ -1,0 +1,92 @@
+"""N(t)/m as a trig sum c + Σ a_k cos(w_k t + φ_k), eqs 4–7: its rows, values, derivatives and bounds.
+
+N/m = r0 ω_r² − g_eff sin θ (corrected) or the paper's eq. 7 form 2 r0 ω_r² − (g − (ω_v² − k/m) r_d sin α) sin θ,
+with sin α sin θ = ½[cos(α − θ) − cos(α + θ)] and −g sin θ = g cos(θ + π/2): three terms per rod
+(:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from millctl.physics.kernels.layout import (
+    _A0,
+    _G,
+    _KM,
+    _PAPER,
+    _R0,
+    _RD,
+    _T_COUNT,
+    _TA,
+    _TH0,
+    _TP,
+    _TRIG_COLUMNS,
+    _TW,
+    _WR,
+    _WV,
+)
+
+
+@njit(cache=True)
+def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyped-def]
+    rows[i, _TA + k], rows[i, _TW + k], rows[i, _TP + k] = amplitude, frequency, phase
+
+
+@njit(cache=True)
+def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
+    """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling.
+
+    ``out``: an array of at least n rows to fill (its first n rows are returned), else a new one.
+    """
+    wr, wv, a0 = p[_WR], p[_WV], p[_A0]
+    if p[_PAPER] != 0.0:
+        constant = 2.0 * p[_R0] * wr * wr
+        coupling = (wv * wv - p[_KM]) * p[_RD]
+    else:
+        constant = p[_R0] * wr * wr
+        coupling = p[_RD] * wv * wv
+    half = 0.5 * coupling
+    rows = np.zeros((n, _TRIG_COLUMNS)) if out is None else out[:n]
+    for i in range(n):
+        th0 = p[_TH0] + i * 2.0 * math.pi / n
+        rows[i, 0], rows[i, _T_COUNT] = constant, 3.0
+        _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
+        _set_term(rows, i, 1, half, wv - wr, a0 - th0)
+        _set_term(rows, i, 2, -half, wv + wr, a0 + th0)
+    return rows
+
+
+@njit(cache=True)
+def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
+    """Sign × the order-th time derivative of row i at t."""
+    total = tr[i, 0] if order == 0 else 0.0
+    shift = 0.5 * math.pi * order
+    for k in range(int(tr[i, _T_COUNT])):
+        w = tr[i, _TW + k]
+        total += tr[i, _TA + k] * w**order * math.cos(w * t + tr[i, _TP + k] + shift)
+    return sign * total
+
+
+@njit(cache=True)
+def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
+    """Sign × (value, first, second derivative) of row i at t: one sine and cosine per term serve all three."""
+    f0, f1, f2 = tr[i, 0], 0.0, 0.0
+    for k in range(int(tr[i, _T_COUNT])):
+        a, w = tr[i, _TA + k], tr[i, _TW + k]
+        x = w * t + tr[i, _TP + k]
+        c, s = math.cos(x), math.sin(x)
+        f0 += a * c
+        f1 -= a * w * s
+        f2 -= a * w * w * c
+    return sign * f0, sign * f1, sign * f2
+
+
+@njit(cache=True)
+def _trig_bound(tr, i, order):  # type: ignore[no-untyped-def]
+    total = 0.0
+    for k in range(int(tr[i, _T_COUNT])):
+        total += abs(tr[i, _TA + k]) * abs(tr[i, _TW + k]) ** order
+    return total
