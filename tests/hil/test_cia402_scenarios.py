@@ -119,6 +119,7 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(mill: Mill) -> None
     start = mill.status()
     assert max(abs(start["measured_rotary_rpm"]), abs(start["measured_vibration_rpm"])) < STANDSTILL_RPM
     mill.run_at(*LOW_RPM)
+    t_steady = time.time()
     window = mill.watch(1.0)
     for steady in window:
         assert steady["state"] == "RUNNING", steady["trip_cause"]
@@ -129,9 +130,8 @@ def test_startup_arm_ramp_steady_milling_and_controlled_stop(mill: Mill) -> None
              "the controlled stop to end ARMED at standstill")
     if mill.probe is not None:  # the drives' own reports of the steady window before the stop
         tolerance = mill.config.interlock.measurement_tolerance_rpm
-        for motor, node_id in node_ids(mill).items():
-            window_s = mill.timeout(1.0)
-            speeds = [mill_rpm(mill, motor, tpdo(s)[1]) for s in tpdos(mill.probe, node_id, t_stop - window_s)
+        for motor, node_id in node_ids(mill).items():  # the window the status was watched in, not the ramp before it
+            speeds = [mill_rpm(mill, motor, tpdo(s)[1]) for s in tpdos(mill.probe, node_id, t_steady)
                       if s.t < t_stop]
             assert len(speeds) >= 5, f"{len(speeds)} TPDO1 from the {motor} drive in the steady window"
             assert sum(speeds) / len(speeds) == pytest.approx(LOW_RPM[motor == "vibration"], abs=tolerance)
