@@ -298,13 +298,22 @@ class Cia402Drive(_Strict):
             raise ValueError(f"EDS file {value!r} is not a readable EDS ({type(exc).__name__}: {shown})") from None
         return value
 
+    @property
+    def units_per_mill_rpm(self) -> float:
+        """Drive velocity units per mill rpm: gear_ratio × units_per_rpm (the planner's grid, SAFETY 21)."""
+        return self.gear_ratio * self.units_per_rpm
+
     def wire_velocity(self, mill_rpm: float) -> int:
-        """The drive's target velocity for a mill speed (rpm → drive units, rounded)."""
-        return round(mill_rpm * self.gear_ratio * self.units_per_rpm)
+        """The drive's target velocity for a mill speed (rpm → drive units, rounded).
+
+        The controller sends only speeds the planner snapped onto this drive's
+        grid (:mod:`millctl.safety.grid`), for which the rounding is exact.
+        """
+        return round(mill_rpm * self.units_per_mill_rpm)
 
     def mill_rpm(self, wire_velocity: int) -> float:
         """The mill speed a drive velocity (drive units) stands for (rpm)."""
-        return wire_velocity / (self.gear_ratio * self.units_per_rpm)
+        return wire_velocity / self.units_per_mill_rpm
 
 
 class Drive(_Strict):

@@ -17,9 +17,11 @@ Every law of :mod:`millctl.physics.limits` is unimodal in ω_v, so the lowest
 limit over an interval lies at an end; the planner still checks a grid in
 between, so a future law that is not unimodal is handled conservatively.
 
-Setpoints travel on the wire with a finite resolution. Endpoints are snapped
-to that grid and ω_r,low is rounded down onto it, so that a point on a ramp
-rounded by the codec stays between the ramp's grid-aligned ends and inside.
+Setpoints travel on the wire with a finite resolution: 0.1 rpm on millbus, a
+CiA 402 drive's velocity unit on that backend (:mod:`millctl.safety.grid`,
+chosen per axis from the configuration). Endpoints are snapped to that grid
+and ω_r,low is rounded down onto it, so that a point on a ramp rounded by the
+codec stays between the ramp's grid-aligned ends and inside.
 Every planned move is then checked on what will be sent: every rounded pair
 its segments can put on the wire (:mod:`millctl.safety.wire`), for every
 path kind — a linear ramp that runs close to the limit can round outside.
@@ -36,7 +38,8 @@ from numpy.typing import NDArray
 
 from millctl.config.models import MillConfig
 from millctl.safety.envelope import Envelope, InterlockRefused, Verdict
-from millctl.safety.wire import first_wire_violation
+from millctl.safety.grid import AxisGrid, wire_grids
+from millctl.safety.wire import Resolution, axis_grids, first_wire_violation
 
 SETTLE_TIME_CONSTANTS = 5.0
 """The planner dwells this many drive time constants between one-axis ramps."""
@@ -120,31 +123,51 @@ class Trajectory:
 class RampPlanner:
     """Plans moves and stops inside one envelope, on the wire's speed grid."""
 
-    def __init__(self, envelope: Envelope, resolution_rpm: float = 0.1, settle_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        envelope: Envelope,
+        resolution_rpm: float = 0.1,
+        settle_s: float = 0.0,
+        *,
+        grids: tuple[AxisGrid, AxisGrid] | None = None,
+    ) -> None:
         if not resolution_rpm > 0.0:
             raise ValueError(f"resolution_rpm = {resolution_rpm} must be > 0")
         if not settle_s >= 0.0:
             raise ValueError(f"settle_s = {settle_s} must be ≥ 0")
         self.envelope = envelope
-        self.resolution_rpm = resolution_rpm
+        self.grids: tuple[AxisGrid, AxisGrid] = grids or axis_grids(resolution_rpm)
+        """The (rotary, vibration) wire grids every setpoint is snapped to (:mod:`millctl.safety.grid`)."""
+        self.resolution_rpm = max(grid.step_rpm for grid in self.grids)
+        """The coarser axis's grid step (rpm)."""
         self.settle_s = settle_s
         """Dwell after each one-axis ramp, so that a lagging drive reaches the corner first (s)."""
 
     @classmethod
     def from_config(cls, config: MillConfig, envelope: Envelope | None = None) -> RampPlanner:
-        """The planner every part of millctl uses for a configured mill (settle dwell from the drives)."""
+        """The planner every part of millctl uses for a configured mill: its backend's wire grids, the drives' dwell.
+
+        On CiA 402 drives each axis's grid is its drive's velocity unit (at
+        least the millbus 0.1 rpm), so the pair the interlock checks is the
+        pair the drives read (SAFETY 21, :func:`millctl.safety.grid.wire_grids`).
+        """
         drives = config.drives
         settle_s = SETTLE_TIME_CONSTANTS * max(drives.rotary.time_constant_s, drives.vibration.time_constant_s)
-        return cls(envelope or Envelope.from_config(config), settle_s=settle_s)
+        return cls(envelope or Envelope.from_config(config), settle_s=settle_s, grids=wire_grids(config))
 
     def snap(self, point: SpeedPoint) -> SpeedPoint:
-        """Round a pair onto the wire grid (what the node will receive)."""
-        q = self.resolution_rpm
-        return SpeedPoint(round(point.omega_r_rpm / q) * q, round(point.omega_v_rpm / q) * q)
+        """Round a pair onto the wire grid (what the node or the drives will read)."""
+        grid_r, grid_v = self.grids
+        return SpeedPoint(grid_r.snap(point.omega_r_rpm), grid_v.snap(point.omega_v_rpm))
 
     def _floor(self, value_rpm: float) -> float:
-        q = self.resolution_rpm
-        return max(0.0, math.floor(value_rpm / q + 1e-9) * q)
+        return self.grids[0].floor(value_rpm)
+
+    def _grid_text(self) -> str:
+        steps = {f"{grid.step_rpm:g}" for grid in self.grids}
+        if len(steps) == 1:
+            return f"{steps.pop()} rpm"
+        return f"{self.grids[0].step_rpm:g} rpm (rotary) and {self.grids[1].step_rpm:g} rpm (vibration)"
 
     def lowest_limit_rpm(self, omega_v0_rpm: float, omega_v1_rpm: float) -> float:
         """The lowest enforced rotary limit over the ω_v interval (rpm)."""
@@ -176,7 +199,7 @@ class RampPlanner:
         a, b = self.snap(start), self.snap(target)
         verdict = env.check(b.omega_r_rpm, b.omega_v_rpm)
         if not verdict.ok:
-            raise InterlockRefused(verdict, "target")
+            raise InterlockRefused(verdict, self._as_sent("target", target, b))
         start_verdict = env.check(a.omega_r_rpm, a.omega_v_rpm)
         if not start_verdict.ok and not allow_outside_start:
             raise InterlockRefused(start_verdict, "ramp start")
@@ -201,13 +224,20 @@ class RampPlanner:
 
     def _check_wire(self, move: Trajectory, what: str) -> None:
         """Refuse a move any of whose wire-rounded setpoints would be outside (what the node would refuse)."""
-        violation = first_violation(move, self.envelope, self.resolution_rpm)
+        violation = first_violation(move, self.envelope, self.grids)
         if violation is not None:
             t_s, verdict = violation
             raise InterlockRefused(
                 verdict, f"{what} at t = {t_s:.1f} s of {move.duration_s:.1f} s (as sent, rounded to "
-                f"{self.resolution_rpm:g} rpm)"
+                f"{self._grid_text()})"
             )
+
+    def _as_sent(self, what: str, asked: SpeedPoint, sent: SpeedPoint) -> str:
+        """``what``, and the pair as sent where the wire's grid moved it far enough to show."""
+        if abs(asked.omega_r_rpm - sent.omega_r_rpm) < 0.05 and abs(asked.omega_v_rpm - sent.omega_v_rpm) < 0.05:
+            return what
+        return (f"{what} (as sent on the wire's grid of {self._grid_text()}: ω_r = {sent.omega_r_rpm:g} rpm, "
+                f"ω_v = {sent.omega_v_rpm:g} rpm)")
 
     def plan_linear(
         self,
@@ -235,9 +265,11 @@ class RampPlanner:
 
 
 def first_violation(
-    move: Trajectory, envelope: Envelope, resolution_rpm: float = 0.1
+    move: Trajectory, envelope: Envelope, resolution_rpm: Resolution = 0.1
 ) -> tuple[float, Verdict] | None:
     """The first instant (s) of a move whose setpoint as sent (rounded to ``resolution_rpm``) is outside.
+
+    ``resolution_rpm`` is one grid step for both axes (rpm) or each axis's grid (:mod:`millctl.safety.grid`).
 
     Returns it with the verdict there; None when every pair the move can put on the wire is inside.
     """

@@ -1,11 +1,12 @@
 """What the node receives: every wire-rounded sample of a planned move, checked against the envelope.
 
 The controller samples its ramp at the setpoint period and sends each pair
-rounded onto the wire's grid (0.1 rpm, ``config/millbus.dbc``); the node
-checks the rounded pair. Checking the straight line itself is not enough: a
-line that stays inside can round to a point just outside where it runs close
-to the limit (docs/safety.md#whole-ramp-check). Since the sampling instant is
-arbitrary, the planner checks *every* rounded pair the line can produce.
+rounded onto the wire's grid (0.1 rpm, ``config/millbus.dbc``; a CiA 402
+drive's own unit, :mod:`millctl.safety.grid`); the node checks the rounded
+pair. Checking the straight line itself is not enough: a line that stays
+inside can round to a point just outside where it runs close to the limit
+(docs/safety.md#whole-ramp-check). Since the sampling instant is arbitrary,
+the planner checks *every* rounded pair the line can produce.
 
 Along a segment from A to B each axis is a monotone function of the fraction
 f ∈ [0, 1], so its rounded value changes only where it crosses a half-grid
@@ -23,6 +24,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from millctl.safety.envelope import Envelope, Verdict
+from millctl.safety.grid import AxisGrid, ScaledGrid
+
+Resolution = float | tuple[AxisGrid, AxisGrid]
+"""One grid step for both axes (rpm, the millbus wire's kind), or each axis's own grid (rotary, vibration)."""
+
+
+def axis_grids(resolution: Resolution) -> tuple[AxisGrid, AxisGrid]:
+    """Both axes' grids from either form of :data:`Resolution`."""
+    if isinstance(resolution, tuple):
+        return resolution
+    grid = ScaledGrid(resolution)
+    return grid, grid
 
 
 def _crossings(start: float, end: float, resolution: float) -> NDArray[np.float64]:
@@ -40,7 +53,7 @@ def _crossings(start: float, end: float, resolution: float) -> NDArray[np.float6
 
 
 def rounded_samples(
-    start: tuple[float, float], end: tuple[float, float], resolution: float
+    start: tuple[float, float], end: tuple[float, float], resolution: Resolution
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Every rounded pair a straight segment can put on the wire: fractions f, ω_r (rpm) and ω_v (rpm).
 
@@ -48,11 +61,14 @@ def rounded_samples(
     where along the segment it is sent (a crossing's for the combinations).
     """
     (r0, v0), (r1, v1) = start, end
-    fractions = np.unique(np.concatenate(([0.0, 1.0], _crossings(r0, r1, resolution), _crossings(v0, v1, resolution))))
+    grid_r, grid_v = axis_grids(resolution)
+    fractions = np.unique(np.concatenate(
+        ([0.0, 1.0], _crossings(r0, r1, grid_r.step_rpm), _crossings(v0, v1, grid_v.step_rpm))
+    ))
     mids = (fractions[:-1] + fractions[1:]) / 2.0
     at = np.concatenate(([0.0], mids, [1.0]))
-    w_r = np.round((r0 + at * (r1 - r0)) / resolution) * resolution
-    w_v = np.round((v0 + at * (v1 - v0)) / resolution) * resolution
+    w_r = grid_r.snap(r0 + at * (r1 - r0))
+    w_v = grid_v.snap(v0 + at * (v1 - v0))
     # at each crossing, the rounded value of one axis from before with the other's from after
     crossing = fractions[1:-1]
     n = len(crossing)
@@ -68,7 +84,7 @@ def rounded_samples(
 def first_wire_violation(
     segments: list[tuple[float, float, tuple[float, float], tuple[float, float]]],
     envelope: Envelope,
-    resolution: float,
+    resolution: Resolution,
 ) -> tuple[float, Verdict] | None:
     """The earliest instant (s) whose rounded setpoint pair is outside, with the verdict; None when all inside.
 
@@ -86,4 +102,4 @@ def first_wire_violation(
     return None
 
 
-__all__ = ["first_wire_violation", "rounded_samples"]
+__all__ = ["Resolution", "axis_grids", "first_wire_violation", "rounded_samples"]

@@ -6,7 +6,10 @@ controller sends afterwards: 0x607F max profile velocity and 0x6080 max motor
 speed from the absolute caps (the rotary drive's 0x607F also from the eq. 9
 limit at the lowest ω_v the move passes through), 0x6083/0x6084 profile
 acceleration/deceleration and 0x6085 quick-stop deceleration from the
-drive's ``max_accel_rpm_s``, and 0x605A the quick-stop option code.
+drive's ``max_accel_rpm_s``, and 0x605A the quick-stop option code. The speed
+caps are rounded down onto the drive's grid (a cap rounded up would admit up
+to a unit above the envelope, SAFETY 21); the rates are rounded up (a rate
+rounded down would make the drive lag the planned ramp).
 Each is written, then read back; a drive whose read-back differs is not
 enabled and the move is refused naming the object (:func:`mismatch`).
 """
@@ -36,9 +39,37 @@ class LimitObject:
         return f"0x{self.index:04X}:{self.subindex:02X} {self.name}"
 
 
-def _ceil_units(mill_rpm: float, cia: Cia402Drive) -> int:
-    """A mill speed as drive velocity units, rounded up so that rounding never clips a commanded speed."""
-    return max(math.ceil(mill_rpm * cia.gear_ratio * cia.units_per_rpm - 1e-9), 0)
+def _floor_units(mill_rpm: float, cia: Cia402Drive) -> int:
+    """A speed cap (mill rpm) as the most drive velocity units whose mill speed does not exceed it (SAFETY 21).
+
+    Rounded down, never up: a cap written rounded up would let the drive run
+    up to a unit above the envelope. Every speed the controller commands is
+    on the drive's grid (:mod:`millctl.safety.grid`), so a cap that is one
+    such speed floors onto itself and never clips it. Judged by the drive's
+    own read-back conversion (:meth:`Cia402Drive.mill_rpm`), not a float
+    tolerance.
+    """
+    units = max(math.floor(mill_rpm * cia.units_per_mill_rpm), 0)
+    while cia.mill_rpm(units + 1) <= mill_rpm:
+        units += 1
+    while units > 0 and cia.mill_rpm(units) > mill_rpm:
+        units -= 1
+    return units
+
+
+def _floor_motor_rpm(mill_rpm: float, cia: Cia402Drive) -> int:
+    """A speed cap (mill rpm) as the most whole motor rpm (0x6080's unit) that do not exceed it."""
+    motor_rpm = max(math.floor(mill_rpm * cia.gear_ratio), 0)
+    while (motor_rpm + 1) / cia.gear_ratio <= mill_rpm:
+        motor_rpm += 1
+    while motor_rpm > 0 and motor_rpm / cia.gear_ratio > mill_rpm:
+        motor_rpm -= 1
+    return motor_rpm
+
+
+def _ceil_units(rate_rpm_s: float, cia: Cia402Drive) -> int:
+    """An acceleration (mill rpm/s) as drive units, rounded up: the drive must follow every ramp the planner plans."""
+    return max(math.ceil(rate_rpm_s * cia.units_per_mill_rpm - 1e-9), 0)
 
 
 def lowest_vibration_rpm(move: Trajectory | None) -> float:
@@ -66,9 +97,10 @@ def drive_limits(
         eq9_rpm = envelope.limit_rpm(lowest_vibration_rpm(move))
         cap_rpm = min(cap_rpm, max(eq9_rpm, highest_rotary_rpm(move)))
     accel = _ceil_units(drive.max_accel_rpm_s, cia)
+    # both caps rounded down onto the drive's grid: a written limit never admits more than the envelope
     return [
-        LimitObject(0x607F, 0, _ceil_units(cap_rpm, cia), "max profile velocity"),
-        LimitObject(0x6080, 0, max(math.ceil(drive.max_speed_rpm * cia.gear_ratio - 1e-9), 1), "max motor speed"),
+        LimitObject(0x607F, 0, _floor_units(cap_rpm, cia), "max profile velocity"),
+        LimitObject(0x6080, 0, _floor_motor_rpm(drive.max_speed_rpm, cia), "max motor speed"),
         LimitObject(0x6083, 0, accel, "profile acceleration"),
         LimitObject(0x6084, 0, accel, "profile deceleration"),
         LimitObject(0x6085, 0, accel, "quick stop deceleration"),
