@@ -14,11 +14,15 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from millctl.config import MillConfig, load_config
+from millctl.config.models import Cia402Drive
 from millctl.controller import ControllerState
 from millctl.drives.cia402.limits import drive_limits
 from millctl.safety import Envelope, InterlockRefused, RampPlanner, SpeedPoint
+from millctl.safety.grid import MILLBUS_RESOLUTION_RPM, DriveGrid, ScaledGrid
 from tests.unit.drives.rig402 import Rig402
 
 S = ControllerState
@@ -130,3 +134,32 @@ def test_a_cap_on_the_drives_grid_is_written_as_itself_and_one_between_grid_step
     at_rest = {limit.index: limit.value for limit in drive_limits("rotary", rotary, cia, envelope, None)}
     assert envelope.limit_rpm(0.0) == pytest.approx(141.58, abs=0.01)
     assert at_rest[0x607F] == 14  # 141.58 rpm rounded down: 140 rpm, not the 150 rpm rounding up gave
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    units_per_rpm=st.floats(1e-3, 1e4, allow_nan=False),
+    gear_ratio=st.floats(0.05, 100.0, allow_nan=False),
+    speed_rpm=st.floats(-2000.0, 2000.0, allow_nan=False),
+)
+def test_a_snapped_speed_is_exactly_what_the_drive_reads_back(
+    units_per_rpm: float, gear_ratio: float, speed_rpm: float
+) -> None:
+    cia = Cia402Drive(node_id=2, units_per_rpm=units_per_rpm, gear_ratio=gear_ratio)
+    grid = DriveGrid.for_drive(cia.units_per_mill_rpm)
+    snapped = grid.snap(speed_rpm)
+    assert cia.mill_rpm(cia.wire_velocity(snapped)) == snapped  # the round trip is the checked value, bit for bit
+    assert abs(snapped - speed_rpm) <= grid.step_rpm / 2 * (1 + 1e-9)
+    assert grid.step_rpm >= MILLBUS_RESOLUTION_RPM * (1 - 1e-9)  # never finer than the millbus grid
+    assert cia.wire_velocity(snapped) % grid.stride == 0  # a whole number of grid steps in drive units
+    assert grid.floor(abs(speed_rpm)) <= abs(speed_rpm)
+
+
+def test_the_grid_is_the_drives_unit_or_the_fewest_whole_units_that_span_the_millbus_grid() -> None:
+    assert DriveGrid.for_drive(0.1).step_rpm == pytest.approx(10.0)  # coarse: its own unit
+    assert DriveGrid.for_drive(1.0).step_rpm == pytest.approx(1.0)
+    assert DriveGrid.for_drive(100.0).stride == 10  # 0.01 rpm a unit: 10 units = 0.1 rpm
+    assert DriveGrid.for_drive(33.0).stride == 4  # 4 units = 0.121 rpm ≥ 0.1 rpm
+    millbus = RampPlanner.from_config(load_config("config/mill.toml").config)
+    assert millbus.grids == (ScaledGrid(MILLBUS_RESOLUTION_RPM), ScaledGrid(MILLBUS_RESOLUTION_RPM))
+    assert millbus.snap(SpeedPoint(123.45, 0.3)) == SpeedPoint(round(123.45 / 0.1) * 0.1, round(0.3 / 0.1) * 0.1)
