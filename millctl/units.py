@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import numpy as np
-from numpy.typing import NDArray
+if TYPE_CHECKING:  # numpy only names the array type here: a float conversion loads no numpy (CLI start-up)
+    import numpy as np
+    from numpy.typing import NDArray
 
-ArrayOrFloat = TypeVar("ArrayOrFloat", float, NDArray[np.float64])
+ArrayOrFloat = TypeVar("ArrayOrFloat", float, "NDArray[np.float64]")
 
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 """Revolutions per minute in one radian per second."""

@@ -2,7 +2,11 @@
 
 Each command module exposes ``register(subparsers)``, which adds its parser
 and sets ``handler`` to a function ``(args) -> int``. Modules import heavy
-dependencies inside their handlers, so that ``millctl --help`` stays fast.
+dependencies (numpy, numba, scipy, pydantic, httpx, python-can, rich) inside
+their handlers, never at module level, so that ``millctl --help`` and the
+client commands start fast; the files a command names are checked
+(:mod:`millctl.cli.precheck`) before its handler runs, so a bad file is refused
+before anything heavy loads (tests/unit/test_cli_startup.py holds both).
 """
 
 from __future__ import annotations
@@ -108,6 +112,7 @@ def _leaves(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``millctl``; return its exit code."""
     from millctl.cli.output import json_mode
+    from millctl.cli.precheck import precheck
 
     parser = build_parser()
     words = list(sys.argv[1:] if argv is None else argv)
@@ -119,6 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(ExitCode.INVALID_INPUT)
     try:
         with json_mode(bool(getattr(args, "json", False))):
+            precheck(args)  # the named files, before the handler imports numpy, numba, pydantic, ...
             code = int(args.handler(args))
         code = _outcome(args, code)
         sys.stdout.flush()  # here, where a reader that left is a BrokenPipeError (141), not at exit (120)

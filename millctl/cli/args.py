@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import math
+from collections.abc import Callable, Iterator, Sequence
 
 
 def finite_float(text: str) -> float:
@@ -36,4 +38,34 @@ def positive_int(text: str) -> int:
     return value
 
 
-__all__ = ["finite_float", "nonnegative_float", "positive_int"]
+class LazyChoices(Sequence[str]):
+    """An argparse ``choices`` list computed on first use, e.g. an enumeration's values from a heavy module.
+
+    Building the parser then loads nothing; the values are read when an argument is checked or its help is
+    shown. Give the argument a ``metavar`` (argparse would otherwise list the choices while building).
+    """
+
+    def __init__(self, load: Callable[[], Sequence[str]]) -> None:
+        self._load = load
+
+    @functools.cached_property
+    def _values(self) -> tuple[str, ...]:
+        return tuple(self._load())
+
+    def __getitem__(self, index: int) -> str:  # type: ignore[override]
+        return self._values[index]
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __contains__(self, value: object) -> bool:
+        return value in self._values
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __repr__(self) -> str:
+        return repr(list(self._values))
+
+
+__all__ = ["LazyChoices", "finite_float", "nonnegative_float", "positive_int"]

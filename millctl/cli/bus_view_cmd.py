@@ -6,12 +6,13 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Any
-
-import can
+from typing import TYPE_CHECKING, Any
 
 from millctl.cli.output import stderr_console, stdout_console
 from millctl.errors import ExitCode, InvalidInputError
+
+if TYPE_CHECKING:
+    import can
 
 
 def add_view_commands(
@@ -62,6 +63,8 @@ def _line(frame: can.Message, words: str, as_json: bool) -> str:
 
 
 def _show(args: argparse.Namespace) -> int:
+    import can
+
     path = Path(args.input)
     if not path.is_file():
         raise InvalidInputError(f"{path}: no such bus log (millctl writes them to records/bus/*.log)")

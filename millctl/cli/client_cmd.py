@@ -14,12 +14,13 @@ import argparse
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from millctl.api import CommandOut, ControlOut, EventKind, EventOut, ServiceOut, StatusOut
+from millctl.api import EventKind
 from millctl.cli.args import finite_float, nonnegative_float
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
 
 if TYPE_CHECKING:
+    from millctl.api import CommandOut, ControlOut, EventOut, ServiceOut, StatusOut
     from millctl.client import Client
 
 SIMPLE_COMMANDS = {
@@ -236,6 +237,8 @@ def _watch(args: argparse.Namespace) -> int:
 
     if args.json:
         raise NoJsonForm("watch")
+
+    from millctl.api import EventOut
 
     console = stderr_console()
     events: deque[EventOut] = deque(maxlen=6)

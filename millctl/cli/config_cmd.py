@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from millctl.cli.output import print_json, stdout_console
-from millctl.config import MillConfig, load_config
-from millctl.config.loader import LoadedConfig
 from millctl.errors import ExitCode
+
+if TYPE_CHECKING:
+    from millctl.config import MillConfig
+    from millctl.config.loader import LoadedConfig
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -24,6 +27,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def _show(args: argparse.Namespace) -> int:
     from millctl.cli.config_toml import chosen_by, origins, render
+    from millctl.config import load_config
 
     loaded = load_config(args.config)
     conventions = _conventions(loaded)
@@ -50,6 +54,8 @@ def _conventions(loaded: LoadedConfig) -> dict[str, str]:
 
 
 def _check(args: argparse.Namespace) -> int:
+    from millctl.config import load_config
+
     loaded = load_config(args.file)
     warnings = config_warnings(loaded.config)
     if args.json:

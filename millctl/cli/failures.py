@@ -9,6 +9,7 @@ JSON error names what the user can change.
 from __future__ import annotations
 
 import re
+import sys
 from typing import Any
 
 from millctl.errors import ExitCode, MillctlError
@@ -56,9 +57,12 @@ def with_flags(message: str) -> str:
 
 
 def describe_failure(exc: BaseException) -> tuple[int, str, dict[str, Any]]:
-    """The exit code, the one-line message and the JSON error of a failure."""
-    from millctl.client_errors import InterlockRefusal, RequestInvalid, ServiceRefused
+    """The exit code, the one-line message and the JSON error of a failure.
 
+    The client's errors are looked up, not imported (httpx, pydantic): a command that never loaded the client
+    cannot have raised one.
+    """
+    client_errors = sys.modules.get("millctl.client_errors")
     if isinstance(exc, KeyboardInterrupt):
         code = int(ExitCode.INTERRUPTED)
         return code, "interrupted", {"code": EXIT_NAMES[ExitCode.INTERRUPTED], "message": "interrupted",
@@ -71,14 +75,14 @@ def describe_failure(exc: BaseException) -> tuple[int, str, dict[str, Any]]:
     message = with_flags(str(exc))
     error: dict[str, Any] = {"code": EXIT_NAMES.get(exit_code, "error"), "message": message,
                              "exit_code": int(exit_code)}
-    if isinstance(exc, RequestInvalid):
+    if client_errors is not None and isinstance(exc, client_errors.RequestInvalid):
         error["flag"] = flag_of(exc.field)
-    if isinstance(exc, ServiceRefused):
+    if client_errors is not None and isinstance(exc, client_errors.ServiceRefused):
         error["code"] = exc.code.value
         error["flag"] = flag_of(exc.error.field)
         if exc.error.holder:
             error["holder"] = exc.error.holder
-    if isinstance(exc, InterlockRefusal):
+    if client_errors is not None and isinstance(exc, client_errors.InterlockRefusal):
         error["refusals"] = [{**r.model_dump(mode="json"), "flag": flag_of(r.quantity)} for r in exc.refusals]
     problems = getattr(exc, "problems", None)
     if isinstance(problems, list):

@@ -13,42 +13,48 @@ follow one scheme: snake_case, ``<what>_<axis>_<unit>`` (``setpoint_rotary_rpm``
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from pydantic import BaseModel
-from rich.console import Console
+if TYPE_CHECKING:
+    from rich.console import Console
 
 PIPE_WIDTH = 160
 """Width of tables written to a pipe or file, where no terminal says how wide to be."""
 
 
-class _PipeConsole(Console):
-    """A rich console that lets a closed pipe be a :class:`BrokenPipeError`, which ``main`` ends as 141.
+@functools.cache
+def _pipe_console_class() -> type[Console]:
+    """The rich Console with a closed pipe as :class:`BrokenPipeError`, made on first use (rich loads only then).
 
-    rich's own handling exits 1 (``Console.on_broken_pipe``), which would make ``millctl … | head`` look failed.
+    rich's own handling exits 1 (``Console.on_broken_pipe``), which would make ``millctl … | head`` look failed;
+    ``main`` ends a BrokenPipeError as 141, quietly.
     """
+    from rich.console import Console
 
-    def on_broken_pipe(self) -> None:
-        """Hand the closed pipe to ``millctl.cli.main`` (exit 141, quietly)."""
-        self.quiet = True
-        raise BrokenPipeError
+    class _PipeConsole(Console):
+        def on_broken_pipe(self) -> None:
+            self.quiet = True
+            raise BrokenPipeError
+
+    return _PipeConsole
 
 
 def stdout_console() -> Console:
     """A console for data on stdout (rich honours NO_COLOR and detects TTYs)."""
     width = None if sys.stdout.isatty() else PIPE_WIDTH
-    return _PipeConsole(file=sys.stdout, highlight=False, soft_wrap=True, width=width)
+    return _pipe_console_class()(file=sys.stdout, highlight=False, soft_wrap=True, width=width)
 
 
 def stderr_console() -> Console:
     """A console for progress and diagnostics on stderr."""
-    return _PipeConsole(file=sys.stderr, highlight=False, soft_wrap=True)
+    return _pipe_console_class()(file=sys.stderr, highlight=False, soft_wrap=True)
 
 
 JSON_SCHEMA_VERSION = 1
@@ -56,8 +62,12 @@ JSON_SCHEMA_VERSION = 1
 
 
 def plain(data: Any) -> Any:
-    """``data`` with every :mod:`millctl.api` model (and model inside lists and dicts) as plain JSON data."""
-    if isinstance(data, BaseModel):
+    """``data`` with every :mod:`millctl.api` model (and model inside lists and dicts) as plain JSON data.
+
+    pydantic is looked up, not imported: a command that never loaded it has no model to turn into data.
+    """
+    pydantic = sys.modules.get("pydantic")
+    if pydantic is not None and isinstance(data, pydantic.BaseModel):
         return data.model_dump(mode="json")
     if isinstance(data, dict):
         return {str(k): plain(v) for k, v in data.items()}

@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING, Any
 
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.cli.recipe_run_cmd import register_run
-from millctl.config import load_config
 from millctl.errors import ExitCode, InterlockError
 
 if TYPE_CHECKING:  # the planner loads numba and scipy: only the commands that plan import it
@@ -46,6 +45,7 @@ class PreflightRefused(InterlockError):
 
 def preflight(args: argparse.Namespace) -> tuple[Any, RecipePlan]:
     """Load the config and the recipe, and plan it; raise :class:`PreflightRefused` listing every violation."""
+    from millctl.config import load_config
     from millctl.recipes import load_recipe, plan_recipe
 
     config = load_config(args.config).config

@@ -18,11 +18,12 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from millctl.api import RecipeResumeOut, RunState, UnfinishedRunOut
+from millctl.api import RunState
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode, InterlockError
 
 if TYPE_CHECKING:
+    from millctl.api import RecipeResumeOut, UnfinishedRunOut
     from millctl.client import Client
 
 

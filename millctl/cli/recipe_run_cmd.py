@@ -23,12 +23,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from millctl.api import ControllerState, RecipeProgress, RunState, StatusOut
+from millctl.api import ControllerState, RunState
 from millctl.cli.output import hms, print_json, stderr_console, stdout_console
 from millctl.cli.recipe_resume_cmd import register_resume
 from millctl.errors import BusError, ExitCode
 
 if TYPE_CHECKING:
+    from millctl.api import RecipeProgress, StatusOut
     from millctl.client import Client
 
 POLL_S = 0.5

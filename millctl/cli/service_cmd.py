@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from millctl.cli.output import stderr_console
-from millctl.config.loader import LoadedConfig
 
 if TYPE_CHECKING:
     from millctl.api import ServiceOut
+    from millctl.config.loader import LoadedConfig
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

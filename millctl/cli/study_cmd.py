@@ -12,7 +12,6 @@ from typing import Any
 from millctl.cli.args import positive_int
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.cli.priority import add_priority_option, lower_priority
-from millctl.config import load_config
 from millctl.errors import ExitCode, InvalidInputError
 
 
@@ -56,6 +55,7 @@ def _results_path(args: argparse.Namespace) -> Path:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from millctl.config import load_config
     from millctl.studies import ResultsStore, StudyRunner, check_parameters, load_study, make_backend
 
     lower_priority(args.no_nice, "the study")

@@ -15,10 +15,11 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from millctl.api import ControllerState, StatusOut
+from millctl.api import ControllerState
 from millctl.errors import InterlockError
 
 if TYPE_CHECKING:
+    from millctl.api import StatusOut
     from millctl.client import Client
 
 REACHED_RPM = 3.0

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
-from millctl.api.models import RecipeProgress
+from millctl.api import RecipeProgress
 from millctl.client import Client
 from millctl.records import read_records
 from tests.support import realtime
