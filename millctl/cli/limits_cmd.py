@@ -239,7 +239,7 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
     points = OperatingPoints(measured, target, recipe=recipe, recipe_label=label, recipe_path=route,
                              at=planned_from_pairs(args.at or []))
     fig = limits_figure(envelope, config.name, points)
-    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=300, format="png", bbox_inches="tight"))
     stderr_console().print(f"wrote {path}")
 
 
