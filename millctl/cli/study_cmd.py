@@ -216,7 +216,7 @@ def _summary(
 
 
 def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[str, Any], study: Any) -> None:
-    from millctl.cli.study_table import Column, print_study_table
+    from millctl.cli.tables import Column, print_table
     from millctl.studies.metrics import quantity_label
 
     out = stdout_console()
@@ -229,7 +229,7 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
     def quantities(rows: list[dict[str, Any]], names: list[str]) -> list[Column]:
         return [column(quantity_label(n), rows, n.lstrip("-")) for n in names]
 
-    print_study_table(
+    print_table(
         out,
         f"{summary['study']}: best {len(ranked)} of {summary['feasible']} feasible points",
         [column("point", ranked, "point"), *quantities(ranked, params),
@@ -239,7 +239,7 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
         front = summary["pareto_front"]
         ways = " and ".join(f"{quantity_label(n)}, {'lower' if n.startswith('-') else 'higher'} is better"
                             for n in summary["pareto"])
-        print_study_table(out, f"Pareto front of {ways}",
+        print_table(out, f"Pareto front of {ways}",
                           [column("point", front, "point"), *quantities(front, params),
                            *quantities(front, summary["pareto"])])
     if summary["findings"]:
@@ -250,7 +250,7 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
         criteria = Column("criterion", tuple(
             "the objective" if f["criterion"] == "objective" else quantity_label(f["criterion"])
             for f in found))
-        print_study_table(out, "findings: the best feasible point of each group, by each criterion",
+        print_table(out, "findings: the best feasible point of each group, by each criterion",
                           [criteria, *quantities(found, names), column("point", found, "point"),
                            column("value of the criterion", found, "value")])
     rate = summary["points_per_s"]

@@ -145,3 +145,16 @@ def test_the_drawn_path_is_the_planners_sequence_corner_by_corner() -> None:
                      strict=True))
     assert drawn == [(c.omega_v_rpm, c.omega_r_rpm) for c in expected]
     assert len(drawn) > len(targets) + 1  # not the targets joined by straight lines
+
+
+def test_the_cam_comparison_at_80_columns_cuts_no_header_and_no_number(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("millctl.cli.output.PIPE_WIDTH", 80)
+    assert main(["--config", CONFIG, "limits", "--cam", "double", "--vib-rpm", "400", "800"]) == 0
+    out = capsys.readouterr().out
+    assert "…" not in out and max(len(line) for line in out.splitlines()) <= 80
+    flat = " ".join(out.split())
+    for word in ("envelope,", "single", "double", "cam", "(rpm)", "corrected,", "double/single", "1.455"):
+        assert word in flat, word  # every header word and every figure whole
+    assert "p at the highest ω_r both envelopes allow" in flat

@@ -57,14 +57,14 @@ def test_per_rod_and_whole_mill_quantities_are_named_apart() -> None:
 
 
 def test_a_table_too_wide_for_the_terminal_wraps_its_headers_between_words_and_splits() -> None:
-    from millctl.cli.study_table import Column, print_study_table
+    from millctl.cli.tables import Column, print_table
     from millctl.studies.metrics import quantity_label
 
     console = Console(width=60, record=True, file=open("/dev/null", "w"), color_system=None)  # noqa: SIM115
     headers = [quantity_label(n) for n in ("rotary_rpm", "vibration_rpm", "margin_corrected_best_phase_rpm",
                                            "milling_power_w", "dose_rate_j_g_s", "impact_energy_p90_j")]
     columns = [Column("point", ("3", "12"))] + [Column(h, ("0.003924", "112")) for h in headers]
-    print_study_table(console, "grid", columns)
+    print_table(console, "grid", columns)
     text = console.export_text()
     assert "…" not in text and max(len(line) for line in text.splitlines()) <= 60
     for header in headers:

@@ -1,4 +1,4 @@
-"""The study's tables on stdout: quantities by their names with units, headers never cut (issue 39, item 8).
+"""Tables on stdout with headers never cut: the study's, and limits' cam comparison (issue 39, item 8).
 
 Rich shortens a header that does not fit with an ellipsis; here every column is
 at least as wide as the longest word of its header and of its cells, a header
@@ -73,7 +73,7 @@ def _parts(key: Sequence[Column], rest: Sequence[Column], width: int) -> list[li
     return parts
 
 
-def print_study_table(
+def print_table(
     console: Console, title: str, columns: Sequence[Column], key_columns: int = 1, caption: str | None = None
 ) -> None:
     """Print ``columns`` as one table, or as several parts when they do not fit the console's width."""
@@ -85,7 +85,8 @@ def print_study_table(
         widths = _fit(shown, room)
         name = title if len(parts) == 1 else f"{title} (part {n} of {len(parts)})"
         lines = textwrap.wrap(name, console.width, break_long_words=False)
-        table = Table(title="\n".join(lines), caption=caption if n == len(parts) else None)
+        note = "\n".join(textwrap.wrap(caption, console.width, break_long_words=False)) if caption else None
+        table = Table(title="\n".join(lines), caption=note if n == len(parts) else None)
         for column, width in zip(shown, widths, strict=True):
             table.add_column(column.header, justify="right", width=width, overflow="fold")
         rows = len(shown[0].cells) if shown else 0
@@ -94,4 +95,4 @@ def print_study_table(
         console.print(table)
 
 
-__all__ = ["Column", "print_study_table"]
+__all__ = ["Column", "print_table"]
