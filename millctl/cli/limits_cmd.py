@@ -68,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument(
         "--recipe",
         metavar="RECIPE.toml",
-        help="with --plot: mark the target of each step of this recipe (planned points)",
+        help="with --plot: draw the path the planner drives through this recipe's steps, their targets marked",
     )
     parser.add_argument(
         "--at",

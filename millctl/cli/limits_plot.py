@@ -1,6 +1,6 @@
 """``millctl limits --plot``: which rotary speed is safe, at a glance, and the admissible cam phases.
 
-Left panel (the counterpart of the paper's Fig. 5): the region the interlock
+Upper panel (the counterpart of the paper's Fig. 5): the region the interlock
 allows (the configured law with its margin, capped at the rotary drive's
 maximum), every other limit law as a line, the vibration speeds where the
 configured law is not the every-cycle bound (hatched; the number comes from
@@ -9,19 +9,23 @@ and the operating points: measured and target from a running service
 (``--live``), the steps of a recipe (``--recipe``), points given by hand
 (``--at``). A planned point outside the envelope is drawn as a red cross.
 
-Right panel (Fig. 6): the cam phases sin α for which eq. 7 has a real
+Lower panel (Fig. 6): the cam phases sin α for which eq. 7 has a real
 detachment angle, shaded; the printed eq. 8b is drawn as the erratum it is.
+
+The figure is one journal column wide with fonts of 7 pt or more (:mod:`millctl.figstyle`),
+each panel's legend right under its x label, where it hides nothing.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from millctl.config.models import LimitLaw
+from millctl.figstyle import COLUMN_WIDTH_IN, LEGEND_CHARS, RC, TITLE_CHARS, wrap
 from millctl.physics.cam import lift_speed_array
 from millctl.physics.limits import LAWS, omega_r_max, sin_alpha_bound_consistent, sin_alpha_bound_printed_eq8b
 from millctl.safety import Envelope, SpeedPoint
@@ -64,19 +68,31 @@ class OperatingPoints:
 
 
 def limits_figure(envelope: Envelope, title: str, points: OperatingPoints = OperatingPoints()) -> Figure:
-    """The two panels as one matplotlib figure (not yet written)."""
+    """The two panels, one above the other, as one matplotlib figure one column wide (not yet written)."""
+    from matplotlib import rc_context
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(14, 7.2), layout="constrained")
-    ax_env, ax_phase = fig.subplots(1, 2, width_ratios=(1.35, 1))
-    _envelope_panel(ax_env, envelope, points)
-    _phase_panel(ax_phase, envelope)
-    p = envelope.params
-    fig.suptitle(
-        f"{title}: m = {p.rod_mass_kg * 1e3:.1f} g, r0 = {p.r0_m * 1e3:.1f} mm, "
-        f"r_d = {p.eccentricity_m * 1e3:.2f} mm, k = {p.spring_n_per_m:g} N/m, {p.cam.value}-acting cam"
-    )
+    with rc_context(cast("dict[Any, Any]", RC)):  # matplotlib types the keys as a Literal of every rc name
+        fig = Figure(figsize=(COLUMN_WIDTH_IN, 10.5), layout="constrained")
+        ax_env, ax_phase = fig.subplots(2, 1)
+        _envelope_panel(ax_env, envelope, points)
+        _phase_panel(ax_phase, envelope)
+        p = envelope.params
+        fig.suptitle(wrap(
+            f"{title}: the safe speeds and cam phases; m = {p.rod_mass_kg * 1e3:.1f} g, r0 = {p.r0_m * 1e3:.1f} mm, "
+            f"r_d = {p.eccentricity_m * 1e3:.2f} mm, k = {p.spring_n_per_m:g} N/m, {p.cam.value}-acting cam",
+            TITLE_CHARS))
     return fig
+
+
+def _legend_under(ax: Axes) -> None:
+    """The panel's legend right under its x label (a fixed 0.42 in below the axes), entries wrapped to the column."""
+    from matplotlib.transforms import ScaledTranslation
+
+    handles, labels = ax.get_legend_handles_labels()
+    below = ax.transAxes + ScaledTranslation(0.0, -0.42, ax.get_figure().dpi_scale_trans)  # type: ignore[union-attr]
+    ax.legend(handles, [wrap(label, LEGEND_CHARS) for label in labels], loc="upper center",
+              bbox_to_anchor=(0.5, 0.0), bbox_transform=below, ncols=1, frameon=False, borderaxespad=0.0)
 
 
 def _envelope_panel(ax: Axes, envelope: Envelope, points: OperatingPoints) -> None:
@@ -103,7 +119,7 @@ def _envelope_panel(ax: Axes, envelope: Envelope, points: OperatingPoints) -> No
     ax.set(xlabel="vibration speed ω_v (rpm)", ylabel="rotary speed ω_r (rpm)", xlim=(0, envelope.vibration_max_rpm),
            ylim=(0, top), title="Which rotary speed is safe (Fig. 5 counterpart)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=2, frameon=False)
+    _legend_under(ax)
 
 
 def _all(points: OperatingPoints) -> list[SpeedPoint]:
@@ -117,22 +133,22 @@ def _mark_points(ax: Axes, envelope: Envelope, points: OperatingPoints) -> None:
                 "and the final stop")
     if points.recipe:
         ax.plot([pt.omega_v_rpm for pt in points.recipe], [pt.omega_r_rpm for pt in points.recipe],
-                ls="", marker="D", ms=5, mfc="white", mec="tab:cyan", label=f"planned: {points.recipe_label}")
+                ls="", marker="D", ms=4, mfc="white", mec="tab:cyan", label=f"planned: {points.recipe_label}")
     if points.at:
         ax.plot([pt.omega_v_rpm for pt in points.at], [pt.omega_r_rpm for pt in points.at], ls="", marker="s",
-                ms=6, mfc="white", mec="tab:blue", label=f"planned: {len(points.at)} point(s) given with --at")
+                ms=4, mfc="white", mec="tab:blue", label=f"planned: {len(points.at)} point(s) given with --at")
     bad = [pt for pt in points.planned if not envelope.allows(pt.omega_r_rpm, pt.omega_v_rpm)]
     if bad:
-        ax.plot([pt.omega_v_rpm for pt in bad], [pt.omega_r_rpm for pt in bad], ls="", marker="X", ms=10,
+        ax.plot([pt.omega_v_rpm for pt in bad], [pt.omega_r_rpm for pt in bad], ls="", marker="X", ms=7,
                 color="red", label=f"planned point outside the envelope ({len(bad)}): the interlock refuses it")
     if points.target is not None:
         t = points.target
-        ax.plot([t.omega_v_rpm], [t.omega_r_rpm], ls="", marker="o", ms=10, mfc="none", mec="black", mew=1.6,
+        ax.plot([t.omega_v_rpm], [t.omega_r_rpm], ls="", marker="o", ms=7, mfc="none", mec="black", mew=1.6,
                 label=f"target now: ω_v {t.omega_v_rpm:.0f}, ω_r {t.omega_r_rpm:.0f} rpm")
     if points.measured is not None:
         m = points.measured
         outside = not envelope.allows_measured(m.omega_r_rpm, m.omega_v_rpm)
-        ax.plot([m.omega_v_rpm], [m.omega_r_rpm], ls="", marker="o", ms=8, color="red" if outside else "black",
+        ax.plot([m.omega_v_rpm], [m.omega_r_rpm], ls="", marker="o", ms=5, color="red" if outside else "black",
                 label=f"measured now: ω_v {m.omega_v_rpm:.0f}, ω_r {m.omega_r_rpm:.0f} rpm"
                 + (" — OUTSIDE" if outside else ""))
 
@@ -155,10 +171,10 @@ def _phase_panel(ax: Axes, envelope: Envelope) -> None:
             label="from eq. 7: upper bound on sin α (k < mω_v²)")
     ax.plot(w_v_rpm, sin_alpha_bound_printed_eq8b(p, w_v), color="tab:red", lw=1.0, ls=":",
             label="printed eq. 8b (erratum: inconsistent units, not used)")
-    ax.set(xlabel="vibration speed ω_v (rpm)", ylabel="cam phase sin α", ylim=(-1.15, 1.15),
+    ax.set(xlabel="vibration speed ω_v (rpm)", ylabel="cam phase sin α (–)", ylim=(-1.15, 1.15),
            xlim=(0, envelope.vibration_max_rpm), title="Admissible cam phase (Fig. 6 counterpart)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=1, frameon=False)
+    _legend_under(ax)
 
 
 def planned_from_recipe(

@@ -6,6 +6,7 @@ Loaded by :mod:`millctl.cli.limits_cmd` when the command runs (numpy, the physic
 from __future__ import annotations
 
 import argparse
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -118,34 +119,45 @@ def print_table(table: dict[str, Any]) -> None:
             f"{row['limit_rotary_rpm']:.1f}",
             " ".join(flags),
         )
-    out.caption = (
+    console = stdout_console()
+    out.caption = "\n".join(textwrap.wrap(  # a console that soft-wraps would print it on one line
         "† the envelope's law is not the every-cycle bound here; "
         "k<mω²: printed eq. 9 is not the worst phase; Γ≥1: cam acceleration ≥ g; "
-        "no-lim: no real limit, standstill only"
-    )
-    stdout_console().print(out)
+        "no-lim: no real limit, standstill only", console.width))
+    console.print(out)
 
 
 def print_cams(table: dict[str, Any]) -> None:
     """The cams' comparison on stdout."""
-    from rich.table import Table
+    from millctl.cli.tables import Column
+    from millctl.cli.tables import print_table as print_columns
 
-    out = Table(title=f"single- against double-acting cam under {table['law']}: impacts per rod and revolution p")
-    for name in ("ω_v rpm", "envelope\nsingle", "envelope\ndouble", "at ω_r"):
-        out.add_column(name, justify="right")
+    rows = table["cams"]
+
+    def column(header: str, cells: list[str]) -> Column:
+        return Column(header, tuple(cells))
+
+    columns = [
+        column("ω_v (rpm)", [f"{r['vibration_rpm']:.0f}" for r in rows]),
+        column("envelope, single cam (rpm)", [f"{r['limit_rotary_single_rpm']:.1f}" for r in rows]),
+        column("envelope, double cam (rpm)", [f"{r['limit_rotary_double_rpm']:.1f}" for r in rows]),
+        column("at ω_r (rpm)", [f"{r['rotary_rpm']:.1f}" for r in rows]),
+    ]
     for variant in ("paper", "corrected"):
-        for shape in ("single", "double"):
-            out.add_column(f"p {variant}\n{shape}", justify="right")
-        out.add_column(f"{variant}\ndouble/single", justify="right")
-    for row in table["cams"]:
-        cells = [f"{row['vibration_rpm']:.0f}", f"{row['limit_rotary_single_rpm']:.1f}"]
-        cells += [f"{row['limit_rotary_double_rpm']:.1f}", f"{row['rotary_rpm']:.1f}"]
-        for variant in ("paper", "corrected"):
-            single, double = row[f"p_{variant}_single"], row[f"p_{variant}_double"]
-            cells += [_num(single), _num(double), _num(double / single if single > 0 else float("nan"))]
-        out.add_row(*cells)
-    out.caption = "p at the highest ω_r both envelopes allow (level-(b) summaries, 16 cam phases); — none"
-    stdout_console().print(out)
+        single = [r[f"p_{variant}_single"] for r in rows]
+        double = [r[f"p_{variant}_double"] for r in rows]
+        columns += [
+            column(f"p, {variant}, single cam", [_num(v) for v in single]),
+            column(f"p, {variant}, double cam", [_num(v) for v in double]),
+            column(f"p, {variant}, double/single",
+                   [_num(d / s if s > 0 else float("nan")) for s, d in zip(single, double, strict=True)]),
+        ]
+    print_columns(
+        stdout_console(),
+        f"single- against double-acting cam under {table['law']}: impacts per rod and revolution p",
+        columns,
+        caption="p at the highest ω_r both envelopes allow (level-(b) summaries, 16 cam phases); — none",
+    )
 
 
 def _num(value: float) -> str:
@@ -175,7 +187,7 @@ def plot_limits(path: Path, table: dict[str, Any], args: argparse.Namespace) -> 
     points = OperatingPoints(measured, target, recipe=recipe, recipe_label=label, recipe_path=route,
                              at=planned_from_pairs(args.at or []))
     fig = limits_figure(envelope, config.name, points)
-    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+    write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=300, format="png", bbox_inches="tight"))
     stderr_console().print(f"wrote {path}")
 
 

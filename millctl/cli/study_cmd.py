@@ -92,7 +92,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(args, summary)
     else:
-        _print_table(result, runner.metrics, args.top, summary)
+        _print_table(result, runner.metrics, args.top, summary, study)
     return int(ExitCode.OK)
 
 
@@ -215,37 +215,44 @@ def _summary(
     return data
 
 
-def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[str, Any]) -> None:
-    from rich.table import Table
+def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[str, Any], study: Any) -> None:
+    from millctl.cli.tables import Column, print_table
+    from millctl.studies.metrics import quantity_label
 
     out = stdout_console()
     params = [k for k in (result.best or result.rows[0]) if k in _param_columns(result.rows)]
-    ranked = sorted((r for r in result.rows if math.isfinite(r["objective"])), key=lambda r: -r["objective"])
-    table = Table(title=f"{summary['study']}: best {min(top, len(ranked))} of {summary['feasible']} feasible points")
-    for name in ("#", *params, "objective", *metrics):
-        table.add_column(name, justify="right")
-    for row in ranked[:top]:
-        cells = [str(row["point"]), *(_fmt(row[p]) for p in params), _fmt(row["objective"])]
-        table.add_row(*cells, *(_fmt(row[m]) for m in metrics))
-    out.print(table)
+    ranked = sorted((r for r in result.rows if math.isfinite(r["objective"])), key=lambda r: -r["objective"])[:top]
+
+    def column(header: str, rows: list[dict[str, Any]], key: str) -> Column:
+        return Column(header, tuple(_fmt(r.get(key)) for r in rows))
+
+    def quantities(rows: list[dict[str, Any]], names: list[str]) -> list[Column]:
+        return [column(quantity_label(n), rows, n.lstrip("-")) for n in names]
+
+    print_table(
+        out,
+        f"{summary['study']}: best {len(ranked)} of {summary['feasible']} feasible points",
+        [column("point", ranked, "point"), *quantities(ranked, params),
+         column(_objective_header(study), ranked, "objective"), *quantities(ranked, list(metrics))],
+    )
     if "pareto_front" in summary:
-        front = Table(title=f"Pareto front of {', '.join(summary['pareto'])}")
-        names = [n.lstrip("-") for n in summary["pareto"]]
-        for name in ("#", *params, *names):
-            front.add_column(name, justify="right")
-        for row in summary["pareto_front"]:
-            front.add_row(str(row["point"]), *(_fmt(row[p]) for p in params), *(_fmt(row[n]) for n in names))
-        out.print(front)
+        front = summary["pareto_front"]
+        ways = " and ".join(f"{quantity_label(n)}, {'lower' if n.startswith('-') else 'higher'} is better"
+                            for n in summary["pareto"])
+        print_table(out, f"Pareto front of {ways}",
+                          [column("point", front, "point"), *quantities(front, params),
+                           *quantities(front, summary["pareto"])])
     if summary["findings"]:
-        found = Table(title="findings: the best feasible point of each group, by each criterion")
-        names = [k for k in summary["findings"][0] if k not in ("point", "value")]
-        extra = [k for f in summary["findings"] for k in f if k not in names and k not in ("point", "value")]
-        names += list(dict.fromkeys(extra))
-        for name in (*names, "point", "value"):
-            found.add_column(name, justify="right")
-        for f in summary["findings"]:
-            found.add_row(*(_fmt(f.get(n)) for n in (*names, "point", "value")))
-        out.print(found)
+        found = summary["findings"]
+        names = [k for k in found[0] if k not in ("point", "value", "criterion")]
+        names += list(dict.fromkeys(k for f in found for k in f if k not in names and k not in ("point", "value",
+                                                                                            "criterion")))
+        criteria = Column("criterion", tuple(
+            "the objective" if f["criterion"] == "objective" else quantity_label(f["criterion"])
+            for f in found))
+        print_table(out, "findings: the best feasible point of each group, by each criterion",
+                          [criteria, *quantities(found, names), column("point", found, "point"),
+                           column("value of the criterion", found, "value")])
     rate = summary["points_per_s"]
     stderr_console().print(
         f"{summary['points']} points ({summary['computed']} computed, {summary['reused']} from {summary['results']}), "
@@ -253,6 +260,19 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
         f"{summary['elapsed_s']:.1f} s" + (f", {rate:.2f} points/s" if rate else ""),
         markup=False,
     )
+
+
+def _objective_header(study: Any) -> str:
+    """What the objective column holds, in words with the unit: the metric, its negative, or the weighted sum."""
+    from millctl.studies.metrics import quantity_label
+
+    objective = study.objective
+    if objective.maximize is not None:
+        return f"objective: {quantity_label(objective.maximize)}"
+    if objective.minimize is not None:
+        return f"objective: −{quantity_label(objective.minimize)}, maximised"
+    terms = " + ".join(f"{w:g} × {quantity_label(m)}" for m, w in objective.terms.items())
+    return f"objective: {terms}, maximised"
 
 
 _NOT_PARAMS = frozenset({"point", "key", "events", "feasible", "violations", "objective"})

@@ -1,5 +1,9 @@
 """Figures of a study (matplotlib, needs the plot extra): heat map, Pareto front, sensitivity lines.
 
+Each is one journal column wide with fonts of 7 pt or more (:mod:`millctl.figstyle`), every
+axis names its quantity with its unit (:func:`~millctl.studies.metrics.quantity_label`), and
+every legend sits beside the data, never over it:
+
 * heat map of a metric over (ω_v, ω_r) — the axes of the paper's Fig. 5 — with
   every law's limit curve, the forbidden region of the study's envelope law
   hatched, and the paper's recommended 200/800 rpm point marked; when other
@@ -19,9 +23,11 @@ import numpy as np
 
 from millctl.config.models import LimitLaw, MillConfig
 from millctl.errors import InvalidInputError
+from millctl.figstyle import COLUMN_WIDTH_IN, LEGEND_CHARS, RC, TITLE_CHARS, wrap
 from millctl.physics.limits import LimitParams, omega_r_max
 from millctl.studies.engine import point_config
-from millctl.studies.schema import CATEGORICAL, Parameter, Study
+from millctl.studies.metrics import quantity_label
+from millctl.studies.schema import CATEGORICAL, Study
 from millctl.units import rad_s_to_rpm, rpm_to_rad_s
 
 PAPER_POINT_RPM = (800.0, 200.0)
@@ -35,37 +41,6 @@ _LAW_STYLES = {
 }
 
 
-_UNITS = (
-    ("_j_g_s", "J g⁻¹ s⁻¹"), ("_kj_g", "kJ/g"), ("_j_g", "J/g"), ("_m_s2", "m/s²"), ("_n_per_m", "N/m"),
-    ("_rpm_s", "rpm/s"), ("_rpm", "rpm"), ("_hz", "Hz"), ("_kw", "kW"), ("_w", "W"), ("_mj", "mJ"), ("_j", "J"),
-    ("_kpa", "kPa"), ("_mpa", "MPa"), ("_gpa", "GPa"), ("_kn", "kN"), ("_n", "N"), ("_mm", "mm"), ("_m", "m"),
-    ("_deg", "°"), ("_h", "h"), ("_s", "s"), ("_c", "°C"), ("_kg", "kg"), ("_g", "g"),
-)
-"""A metric identifier's unit suffix and the unit it names (longest first: ``_j_g_s`` before ``_s``)."""
-_NAMES = {"rotary_rpm": "ω_r, vial speed (rpm)", "vibration_rpm": "ω_v, cam speed (rpm)"}
-_WORDS = {"p10": "10th percentile", "p90": "90th percentile", "sim": "simulated", "rpm": "rpm"}
-
-
-def metric_label(name: str) -> str:
-    """A metric identifier as an axis label: ``impact_energy_p90_j`` → ``impact energy, 90th percentile (J)``.
-
-    A leading ``-`` (a metric maximised in ``--pareto``) is not part of the quantity plotted.
-    """
-    name = name.lstrip("-")
-    if name in _NAMES:
-        return _NAMES[name]
-    unit = ""
-    for suffix, text in _UNITS:
-        if name.endswith(suffix) and len(name) > len(suffix):
-            name, unit = name[: -len(suffix)], text
-            break
-    words = name.split("_")
-    qualifiers = [_WORDS[w] for w in words if w in ("p10", "p90")]
-    words = [_WORDS.get(w, w) for w in words if w not in ("p10", "p90")]
-    text = " ".join(words) + (", " + ", ".join(qualifiers) if qualifiers else "")
-    return f"{text} ({unit})" if unit else text
-
-
 def _pyplot() -> Any:
     try:
         import matplotlib
@@ -75,6 +50,16 @@ def _pyplot() -> Any:
     except ImportError:
         raise InvalidInputError("figures need matplotlib: pip install 'millctl[plot]'") from None
     return plt
+
+
+def _legend_below(fig: Any, ax: Any, handles: list[Any] | None = None) -> None:
+    """The legend just below the panels (constrained layout makes room): it hides no data; entries wrapped."""
+    if handles is None:
+        handles, labels = ax.get_legend_handles_labels()
+    else:
+        labels = [h.get_label() for h in handles]
+    fig.legend(handles, [wrap(str(label), LEGEND_CHARS) for label in labels], loc="outside lower center", ncols=1,
+               frameon=False)
 
 
 def _slice(rows: Sequence[dict[str, Any]], best: dict[str, Any], free: set[str], study: Study) -> list[dict[str, Any]]:
@@ -105,9 +90,20 @@ def heatmap(
     for r in cut:
         grid[w_r.index(float(r["rotary_rpm"])), w_v.index(float(r["vibration_rpm"]))] = float(r[metric])
     config: MillConfig = point_config(runner_task({p.value: best[p.value] for p in study.parameters}))
-    fig, ax = plt.subplots(figsize=(8, 6))
+    with plt.rc_context(RC):
+        fig = _heatmap_figure(plt, study, config, w_r, w_v, grid, best, metric)
+    fig.savefig(path, dpi=300, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def _heatmap_figure(
+    plt: Any, study: Study, config: MillConfig, w_r: list[float], w_v: list[float], grid: Any,
+    best: dict[str, Any], metric: str,
+) -> Any:
+    fig, ax = plt.subplots(figsize=(COLUMN_WIDTH_IN, 5.0), layout="constrained")
     mesh = ax.pcolormesh(w_v, w_r, grid, shading="nearest", cmap="viridis")
-    fig.colorbar(mesh, ax=ax, label=metric_label(metric))
+    fig.colorbar(mesh, ax=ax, label=wrap(quantity_label(metric), 45))
     params = LimitParams.from_config(config)
     left, right = _edges(w_v)
     bottom, top = _edges(w_r)
@@ -130,21 +126,17 @@ def heatmap(
             linewidth=0.0,
             label=f"forbidden under {law_name} (margin {config.interlock.margin:.0%})",
         )
-    ax.plot(*PAPER_POINT_RPM, marker="*", markersize=16, color="white", markeredgecolor="black", linestyle="none")
-    ax.annotate("paper: 200/800", PAPER_POINT_RPM, textcoords="offset points", xytext=(8, 8), color="white")
+    ax.plot(*PAPER_POINT_RPM, marker="*", markersize=9, color="white", markeredgecolor="black", linestyle="none",
+            label="the paper's recommended point, 200/800 rpm")
     ax.plot(best["vibration_rpm"], best["rotary_rpm"], marker="o", color="red", linestyle="none", label="best point")
     ax.set_xlim(left, right)
     ax.set_ylim(bottom, top)
     ax.set_xlabel("ω_v, cam speed (rpm)")
     ax.set_ylabel("ω_r, vial speed (rpm)")
-    ax.set_title(f"{study.study.name}: {metric_label(metric)}\n({config.model.variant} model, "
-                 f"{config.mill.cam.shape} cam)")
-    # below the axes, where it hides no cell of the map
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8, frameon=False)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    ax.set_title(wrap(f"{study.study.name}: {quantity_label(metric)} over the two speeds "
+                      f"({config.model.variant} model, {config.mill.cam.shape} cam)", TITLE_CHARS))
+    _legend_below(fig, ax)  # below the axes, where it hides no cell of the map
+    return fig
 
 
 def pareto_plot(
@@ -154,16 +146,18 @@ def pareto_plot(
     plt = _pyplot()
     a, b = (m.lstrip("-") for m in metrics)
     feasible = [r for r in rows if r["feasible"] and math.isfinite(float(r[a])) and math.isfinite(float(r[b]))]
-    fig, ax = plt.subplots(figsize=(7, 5))
-    ax.scatter([r[a] for r in feasible], [r[b] for r in feasible], s=10, color="0.6", label="feasible points")
-    ax.plot([r[a] for r in front], [r[b] for r in front], "o-", color="tab:red", label="Pareto front")
-    for set_label, metric in ((ax.set_xlabel, metrics[0]), (ax.set_ylabel, metrics[1])):
-        better = "higher" if metric.startswith("-") else "lower"
-        set_label(f"{metric_label(metric)}, {better} is better")  # the raw value is plotted, never its negative
-    ax.set_title(f"Pareto front: {metric_label(metrics[0])} against {metric_label(metrics[1])}", fontsize=10)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with plt.rc_context(RC):
+        fig, ax = plt.subplots(figsize=(COLUMN_WIDTH_IN, 3.6), layout="constrained")
+        ax.scatter([r[a] for r in feasible], [r[b] for r in feasible], s=6, color="0.6", label="feasible points")
+        ax.plot([r[a] for r in front], [r[b] for r in front], "o-", color="tab:red", label="Pareto front")
+        for set_label, metric in ((ax.set_xlabel, metrics[0]), (ax.set_ylabel, metrics[1])):
+            # --pareto maximises NAME and minimises -NAME; the raw value is plotted, never its negative
+            better = "lower" if metric.startswith("-") else "higher"
+            set_label(wrap(f"{quantity_label(metric)}, {better} is better", TITLE_CHARS))
+        ax.set_title(wrap(f"Pareto front of {quantity_label(metrics[0])} and {quantity_label(metrics[1])} "
+                          "over the feasible points", TITLE_CHARS))
+        _legend_below(fig, ax)
+    fig.savefig(path, dpi=300, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -182,24 +176,32 @@ def sensitivity(
     if not lines:
         return None
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(lines), figsize=(4 * len(lines), 3.5), squeeze=False)
-    for ax, (p, cut) in zip(axes[0], lines, strict=True):
-        ax.plot([float(r[p.value]) for r in cut], [float(r[metric]) for r in cut], "-", color="tab:blue",
-                label="through the best point")
-        ok = [r for r in cut if r["feasible"]]
-        bad = [r for r in cut if not r["feasible"]]
-        ax.plot([float(r[p.value]) for r in ok], [float(r[metric]) for r in ok], "o", color="tab:blue",
-                label="feasible")
-        if bad:
-            ax.plot([float(r[p.value]) for r in bad], [float(r[metric]) for r in bad], "x", color="tab:red",
-                    markersize=8, label="infeasible (a constraint is violated)")
-        ax.axvline(float(best[p.value]), color="tab:red", linewidth=0.8)
-        ax.set_xlabel(metric_label(Parameter(p).value))
-        ax.set_ylabel(metric_label(metric))
-        ax.legend(fontsize=7)
-    fig.suptitle(f"{study.study.name}: sensitivity of {metric_label(metric)} through the best point")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with plt.rc_context(RC):
+        fig, axes = plt.subplots(len(lines), 1, figsize=(COLUMN_WIDTH_IN, 1.0 + 2.0 * len(lines)), squeeze=False,
+                                 layout="constrained")
+        handles: dict[str, Any] = {}
+        for ax, (p, cut) in zip(axes[:, 0], lines, strict=True):
+            xs = [float(r[p.value]) for r in cut]
+            (line,) = ax.plot(xs, [float(r[metric]) for r in cut], "-", color="tab:blue",
+                              label="through the best point, one parameter varied")
+            ok = [r for r in cut if r["feasible"]]
+            bad = [r for r in cut if not r["feasible"]]
+            (dots,) = ax.plot([float(r[p.value]) for r in ok], [float(r[metric]) for r in ok], "o", color="tab:blue",
+                              label="feasible")
+            handles.setdefault(line.get_label(), line)
+            handles.setdefault(dots.get_label(), dots)
+            if bad:
+                (cross,) = ax.plot([float(r[p.value]) for r in bad], [float(r[metric]) for r in bad], "x",
+                                   color="tab:red", markersize=6, label="infeasible (a constraint is violated)")
+                handles.setdefault(cross.get_label(), cross)
+            best_line = ax.axvline(float(best[p.value]), color="tab:red", linewidth=0.8, label="the best point")
+            handles.setdefault(best_line.get_label(), best_line)
+            ax.set_xlabel(quantity_label(p.value))
+            ax.set_ylabel(wrap(quantity_label(metric), 28))
+        _legend_below(fig, axes[-1, 0], list(handles.values()))
+        fig.suptitle(wrap(f"{study.study.name}: sensitivity of {quantity_label(metric)} to each parameter "
+                          "through the best point", TITLE_CHARS))
+    fig.savefig(path, dpi=300, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -227,4 +229,4 @@ def write_figures(
     return [str(p) for p in written if p is not None]
 
 
-__all__ = ["PAPER_POINT_RPM", "heatmap", "metric_label", "pareto_plot", "sensitivity", "write_figures"]
+__all__ = ["PAPER_POINT_RPM", "heatmap", "pareto_plot", "sensitivity", "write_figures"]

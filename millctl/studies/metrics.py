@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from millctl.config.models import LimitLaw, MillConfig
+from millctl.errors import InvalidInputError
 from millctl.physics.cam import lift_phase_rad, lift_speed_rad_s
 from millctl.physics.dose import dose_rate_j_g_s, milling_power_w, whole_mill_rate_hz
 from millctl.physics.impact import carriage_shear_pa
@@ -35,16 +36,21 @@ from millctl.studies.loads import (
     slip_ride_metrics,
     structural_metrics,
 )
+from millctl.studies.schema import PARAMETER_NAMES, Parameter
 from millctl.units import rad_s_to_rpm
 
 
 @dataclass(frozen=True)
 class Metric:
-    """One metric: its name (with its unit), level of detail, and what it is."""
+    """One metric: its identifier (with its unit), level of detail, the name people read, and what it is."""
 
     name: str
     level: str
     """"a" closed form, "b" per-revolution summary, "s" slip ride, "c" multi-rod simulation."""
+    label: str
+    """Its name in tables and figures, in words; a quantity of one rod says "per rod", of every rod "whole mill"."""
+    unit: str
+    """Its unit as printed, one word so that a header never wraps inside it ("–" a pure number)."""
     description: str
 
 
@@ -53,53 +59,112 @@ def _margin_name(law: LimitLaw) -> str:
 
 
 _LIST = [
-    *(Metric(_margin_name(law), "a", f"ω_r,max under {law.value} minus ω_r (rpm; < 0 outside)") for law in LimitLaw),
-    Metric("gamma", "a", "cam intensity Γ = r_d (hω_v)²/g"),
-    Metric("spring_force_amplitude_n", "a", "k·r_d of eqs 4–9, the per-rod spring term (N)"),
-    Metric("paper_estimate_power_w", "a", "the paper's estimate, whole mill: n × eq. 18 (p = 1) × eq. 19 at r0 ω_r"),
-    Metric("paper_estimate_power_per_rod_w", "a", "the same for one rod, as eq. 18 is printed (W)"),
-    Metric("platform_acceleration_peak_m_s2", "a", "peak platform and vial acceleration r_d (hω_v)² (m/s²)"),
-    Metric("spring_force_peak_n", "a", "peak tension of the four platform springs K_s (δ0 + r_d) (N)"),
-    Metric("cam_contact_force_min_n", "a", "least cam–roller contact force over the cam phase (N; < 0: roller jumps)"),
-    Metric("cam_contact_force_max_n", "a", "largest cam–roller contact force over the cam phase (N)"),
-    Metric("follower_jump_margin_rpm", "a", "cam speed at which the roller leaves the cam minus ω_v (rpm)"),
-    Metric("cam_contact_pressure_pa", "a", "Hertz p_max of the cam–roller contact at the largest force (Pa)"),
-    Metric("cam_fatigue_cycles", "a", "cycles to contact fatigue at that pressure (inf below the endurance limit)"),
-    Metric("shaft_load_peak_n", "a", "peak quasi-static load on the rotary shaft's bearings (N)"),
-    Metric("bearing_life_h", "a", "L10 life of one shaft bearing at that load and ω_r (h)"),
-    Metric("impact_rate_hz", "b", "impacts per second, whole mill, n·p·ω_r/2π (eq. 18 corrected)"),
-    Metric("impact_rate_per_rod_hz", "b", "impacts per second and rod, p·ω_r/2π (eq. 18)"),
-    Metric("impact_energy_mean_j", "b", "mean energy of an impact (eq. 19, variant's form) (J)"),
-    Metric("milling_power_w", "b", "whole mill: impact rate × mean impact energy (W)"),
-    Metric("dose_rate_j_g_s", "b", "whole mill's milling power per gram of powder (J/g/s)"),
-    Metric("wall_shear_pa", "b", "eq. 25, μ·p_av averaged over the pinned arc (Pa)"),
-    Metric("detach_fraction", "b", "share of cam phases whose revolution has a counted impact"),
-    Metric("theta_d_deg", "b", "mean detachment angle (degrees; nan when pinned)"),
-    Metric("impact_force_peak_n", "b", "peak force of a wall impact at the mean impact energy (N)"),
-    Metric("rod_rod_shear_pa", "b", "eq. 20 with the impact force: μ F / A(F), A the rod–rod Hertz strip (Pa)"),
-    Metric("no_slip_violated", "b", "1 when the carriage needs |F_t| > μN at some cam phase, else 0"),
-    Metric("slip_fraction", "b", "share of cam phases whose carriage slips before the rod leaves"),
-    Metric("micro_hop_fraction", "b", "share of cam phases whose landing is below the impact threshold"),
-    Metric("cam_phases_used", "b", "cam phases the level-(b) integral took"),
-    Metric("cam_phase_error", "b", "its error estimate: change of milling power at the last doubling (relative)"),
-    Metric("slip_impact_fraction", "s", "with slip (spin locked): share of cam phases with a counted wall impact"),
-    Metric("slip_impact_energy_mean_j", "s", "with slip: mean wall impact energy (J)"),
-    Metric("slip_milling_power_w", "s", "with slip: whole mill's impact power, n·fraction·ω_r/2π × energy (W)"),
-    Metric("slip_unresolved_fraction", "s", "with slip: share of cam phases whose landing the contact search failed"),
-    Metric("impact_energy_p10_j", "c", "10th percentile of impact energy over the simulated impacts (J)"),
-    Metric("impact_energy_p90_j", "c", "90th percentile of impact energy over the simulated impacts (J)"),
-    Metric("sim_impact_rate_hz", "c", "impacts per second in the multi-rod simulation, whole mill"),
-    Metric("sim_slip_fraction", "c", "share of the simulation's carried arcs whose carriage needs |F_t| > μN"),
-    Metric("sim_slip_lead_deg", "c", "mean wall angle before a departure over which the carriage slips (deg)"),
-    Metric("spin_shear_pa", "c", "eqs 26–27 corrected at the wall impacts: min(|F_t|, μN)/(2 L b), mean (Pa)"),
+    *(Metric(_margin_name(law), "a", f"margin to the {law.value} limit", "rpm",
+             f"ω_r,max under {law.value} minus ω_r (rpm; < 0 outside)") for law in LimitLaw),
+    Metric("gamma", "a", "cam intensity Γ, peak cam acceleration over g", "–",
+           "cam intensity Γ = r_d (hω_v)²/g"),
+    Metric("spring_force_amplitude_n", "a", "spring force amplitude, per rod", "N",
+           "k·r_d of eqs 4–9, the per-rod spring term (N)"),
+    Metric("paper_estimate_power_w", "a", "paper's power estimate, whole mill", "W",
+           "the paper's estimate, whole mill: n × eq. 18 (p = 1) × eq. 19 at r0 ω_r"),
+    Metric("paper_estimate_power_per_rod_w", "a", "paper's power estimate, per rod", "W",
+           "the same for one rod, as eq. 18 is printed (W)"),
+    Metric("platform_acceleration_peak_m_s2", "a", "peak platform acceleration", "m/s²",
+           "peak platform and vial acceleration r_d (hω_v)² (m/s²)"),
+    Metric("spring_force_peak_n", "a", "peak platform spring force", "N",
+           "peak tension of the four platform springs K_s (δ0 + r_d) (N)"),
+    Metric("cam_contact_force_min_n", "a", "least cam contact force", "N",
+           "least cam–roller contact force over the cam phase (N; < 0: roller jumps)"),
+    Metric("cam_contact_force_max_n", "a", "largest cam contact force", "N",
+           "largest cam–roller contact force over the cam phase (N)"),
+    Metric("follower_jump_margin_rpm", "a", "margin to the roller leaving the cam", "rpm",
+           "cam speed at which the roller leaves the cam minus ω_v (rpm)"),
+    Metric("cam_contact_pressure_pa", "a", "cam contact pressure", "Pa",
+           "Hertz p_max of the cam–roller contact at the largest force (Pa)"),
+    Metric("cam_fatigue_cycles", "a", "cycles to cam contact fatigue", "cycles",
+           "cycles to contact fatigue at that pressure (inf below the endurance limit)"),
+    Metric("shaft_load_peak_n", "a", "peak shaft bearing load", "N",
+           "peak quasi-static load on the rotary shaft's bearings (N)"),
+    Metric("bearing_life_h", "a", "shaft bearing L10 life", "h",
+           "L10 life of one shaft bearing at that load and ω_r (h)"),
+    Metric("impact_rate_hz", "b", "impact rate, whole mill", "Hz",
+           "impacts per second, whole mill, n·p·ω_r/2π (eq. 18 corrected)"),
+    Metric("impact_rate_per_rod_hz", "b", "impact rate, per rod", "Hz",
+           "impacts per second and rod, p·ω_r/2π (eq. 18)"),
+    Metric("impact_energy_mean_j", "b", "mean impact energy", "J",
+           "mean energy of an impact (eq. 19, variant's form) (J)"),
+    Metric("milling_power_w", "b", "milling power, whole mill", "W",
+           "whole mill: impact rate × mean impact energy (W)"),
+    Metric("dose_rate_j_g_s", "b", "dose rate, whole mill", "J/(g·s)",
+           "whole mill's milling power per gram of powder (J/g/s)"),
+    Metric("wall_shear_pa", "b", "wall shear stress, eq. 25", "Pa",
+           "eq. 25, μ·p_av averaged over the pinned arc (Pa)"),
+    Metric("detach_fraction", "b", "share of cam phases detaching", "–",
+           "share of cam phases whose revolution has a counted impact"),
+    Metric("theta_d_deg", "b", "mean detachment angle", "°",
+           "mean detachment angle (degrees; nan when pinned)"),
+    Metric("impact_force_peak_n", "b", "peak impact force", "N",
+           "peak force of a wall impact at the mean impact energy (N)"),
+    Metric("rod_rod_shear_pa", "b", "rod–rod shear stress, eq. 20", "Pa",
+           "eq. 20 with the impact force: μ F / A(F), A the rod–rod Hertz strip (Pa)"),
+    Metric("no_slip_violated", "b", "no-slip condition violated", "0/1",
+           "1 when the carriage needs |F_t| > μN at some cam phase, else 0"),
+    Metric("slip_fraction", "b", "share of cam phases slipping", "–",
+           "share of cam phases whose carriage slips before the rod leaves"),
+    Metric("micro_hop_fraction", "b", "share of cam phases micro-hopping", "–",
+           "share of cam phases whose landing is below the impact threshold"),
+    Metric("cam_phases_used", "b", "cam phases used", "count",
+           "cam phases the level-(b) integral took"),
+    Metric("cam_phase_error", "b", "cam-phase integral error", "–",
+           "its error estimate: change of milling power at the last doubling (relative)"),
+    Metric("slip_impact_fraction", "s", "share of cam phases impacting, with slip", "–",
+           "with slip (spin locked): share of cam phases with a counted wall impact"),
+    Metric("slip_impact_energy_mean_j", "s", "mean impact energy, with slip", "J",
+           "with slip: mean wall impact energy (J)"),
+    Metric("slip_milling_power_w", "s", "milling power with slip, whole mill", "W",
+           "with slip: whole mill's impact power, n·fraction·ω_r/2π × energy (W)"),
+    Metric("slip_unresolved_fraction", "s", "share of landings unresolved, with slip", "–",
+           "with slip: share of cam phases whose landing the contact search failed"),
+    Metric("impact_energy_p10_j", "c", "impact energy, 10th percentile", "J",
+           "10th percentile of impact energy over the simulated impacts (J)"),
+    Metric("impact_energy_p90_j", "c", "impact energy, 90th percentile", "J",
+           "90th percentile of impact energy over the simulated impacts (J)"),
+    Metric("sim_impact_rate_hz", "c", "simulated impact rate, whole mill", "Hz",
+           "impacts per second in the multi-rod simulation, whole mill"),
+    Metric("sim_slip_fraction", "c", "simulated share of carried arcs slipping", "–",
+           "share of the simulation's carried arcs whose carriage needs |F_t| > μN"),
+    Metric("sim_slip_lead_deg", "c", "simulated slip lead angle", "°",
+           "mean wall angle before a departure over which the carriage slips (deg)"),
+    Metric("spin_shear_pa", "c", "spin shear stress, eqs 26–27", "Pa",
+           "eqs 26–27 corrected at the wall impacts: min(|F_t|, μN)/(2 L b), mean (Pa)"),
 ]
 METRICS: dict[str, Metric] = {m.name: m for m in _LIST}
 """Every metric by name."""
 
 DEFAULT_METRICS = tuple(m.name for m in _LIST if m.level in ("a", "b"))
+"""Metrics of a study that names none: every level-(a) and level-(b) metric."""
+
+
+def quantity_label(name: str) -> str:
+    """A metric's or parameter's name with its unit, for a table header or an axis: ``milling power, whole mill (W)``.
+
+    The one place identifiers become words (the metrics above, the parameters in
+    :data:`~millctl.studies.schema.PARAMETER_NAMES`); a leading ``-`` (a metric minimised in
+    ``--pareto``) is not part of the quantity.
+    """
+    key = name.lstrip("-")
+    if key in METRICS:
+        label, unit = METRICS[key].label, METRICS[key].unit
+    elif key in PARAMETER_NAMES:
+        label, unit = PARAMETER_NAMES[Parameter(key)]
+    else:
+        known = ", ".join([*METRICS, *PARAMETER_NAMES])
+        raise InvalidInputError(f"{name!r} is neither a metric nor a study parameter (known: {known})")
+    return f"{label} ({unit})" if unit else label
+
+
 MAX_CAM_PHASES = 256
 """The level-(b) integral stops doubling the cam phases here, whatever its error."""
-"""Metrics of a study that names none: every level-(a) and level-(b) metric."""
 
 
 @dataclass(frozen=True)
@@ -259,4 +324,5 @@ __all__ = [
     "PointSettings",
     "cam_phase_summary",
     "compute_metrics",
+    "quantity_label",
 ]

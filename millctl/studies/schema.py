@@ -71,6 +71,24 @@ class Parameter(enum.StrEnum):
     VARIANT = "variant"
 
 
+PARAMETER_NAMES: dict[Parameter, tuple[str, str]] = {
+    Parameter.ROTARY_RPM: ("ω_r, vial speed", "rpm"),
+    Parameter.VIBRATION_RPM: ("ω_v, cam speed", "rpm"),
+    Parameter.SPRING_N_PER_M: ("spring stiffness k", "N/m"),
+    Parameter.ECCENTRICITY_MM: ("cam eccentricity", "mm"),
+    Parameter.CAM_SHAPE: ("cam shape", ""),
+    Parameter.ROD_RADIUS_MM: ("rod radius", "mm"),
+    Parameter.ROD_LENGTH_MM: ("rod length", "mm"),
+    Parameter.ROD_MATERIAL: ("rod material", ""),
+    Parameter.N_RODS: ("number of rods", ""),
+    Parameter.VIAL_RADIUS_MM: ("vial radius", "mm"),
+    Parameter.VIAL_MATERIAL: ("vial material", ""),
+    Parameter.POWDER_CHARGE_G: ("powder charge", "g"),
+    Parameter.VARIANT: ("model variant", ""),
+}
+"""Each parameter's name in tables and figures and its unit ("" for names and counts); the metrics' are in
+:data:`millctl.studies.metrics.METRICS`, and :func:`millctl.studies.metrics.quantity_label` reads both."""
+
 CATEGORICAL = frozenset({Parameter.CAM_SHAPE, Parameter.ROD_MATERIAL, Parameter.VIAL_MATERIAL, Parameter.VARIANT})
 """Parameters that take names, not numbers: only ``values`` lists them."""
 INTEGER = frozenset({Parameter.N_RODS})
@@ -237,6 +255,7 @@ def load_study(path: str | Path) -> Study:
 __all__ = [
     "CATEGORICAL",
     "INTEGER",
+    "PARAMETER_NAMES",
     "Constraints",
     "Grid",
     "Header",

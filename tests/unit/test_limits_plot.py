@@ -31,7 +31,7 @@ POINTS = OperatingPoints(
 def legend_labels(fig: Figure, panel: int) -> list[str]:
     legend = fig.axes[panel].get_legend()
     assert legend is not None
-    return [text.get_text() for text in legend.get_texts()]
+    return [" ".join(text.get_text().split()) for text in legend.get_texts()]  # entries wrap to the column
 
 
 def test_the_envelope_panel_names_every_law_the_regime_and_the_points() -> None:
@@ -116,3 +116,45 @@ def test_a_recipe_is_drawn_along_the_planners_path_not_straight_between_its_targ
     assert len(v) > len(targets)  # corners between the targets
     markers = drawn[f"planned: {label}"]
     assert markers.get_linestyle() == "None"  # the targets are points; the line is the path
+
+
+def test_the_figure_is_one_column_wide_legible_and_each_legend_right_under_its_panel() -> None:
+    from tests.unit.figure_checks import legends_beside_the_data, legible_at_one_column
+
+    fig = limits_figure(ENVELOPE, "Set A", POINTS)
+    legible_at_one_column(fig, "limits")
+    legends_beside_the_data(fig)
+    assert [ax.get_xlabel() for ax in fig.axes] == ["vibration speed ω_v (rpm)"] * 2
+    assert fig.get_suptitle().startswith("Set A: the safe speeds and cam phases")
+
+
+def test_the_drawn_path_is_the_planners_sequence_corner_by_corner() -> None:
+    from millctl.cli.limits_plot import planned_from_recipe
+    from millctl.recipes import load_recipe, plan_recipe
+
+    demo = str(Path(__file__).resolve().parents[2] / "config" / "recipes" / "demo.toml")
+    config = load_config(CONFIG).config
+    targets, label, route = planned_from_recipe(demo, config)
+    fig = limits_figure(ENVELOPE, "Set A", OperatingPoints(recipe=targets, recipe_label=label, recipe_path=route))
+    (path,) = [line for line in fig.axes[0].get_lines() if str(line.get_label()).startswith("planned path")]
+    plan = plan_recipe(load_recipe(demo).recipe, config)
+    corners = [c for step in plan.steps if step.trajectory is not None for c in step.trajectory.vertices()]
+    corners += list(plan.stop.vertices())
+    expected = [c for i, c in enumerate(corners) if i == 0 or c != corners[i - 1]]
+    drawn = list(zip(np.asarray(path.get_xdata(), dtype=float), np.asarray(path.get_ydata(), dtype=float),
+                     strict=True))
+    assert drawn == [(c.omega_v_rpm, c.omega_r_rpm) for c in expected]
+    assert len(drawn) > len(targets) + 1  # not the targets joined by straight lines
+
+
+def test_the_cam_comparison_at_80_columns_cuts_no_header_and_no_number(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr("millctl.cli.output.PIPE_WIDTH", 80)
+    assert main(["--config", CONFIG, "limits", "--cam", "double", "--vib-rpm", "400", "800"]) == 0
+    out = capsys.readouterr().out
+    assert "…" not in out and max(len(line) for line in out.splitlines()) <= 80
+    flat = " ".join(out.split())
+    for word in ("envelope,", "single", "double", "cam", "(rpm)", "corrected,", "double/single", "1.455"):
+        assert word in flat, word  # every header word and every figure whole
+    assert "p at the highest ω_r both envelopes allow" in flat

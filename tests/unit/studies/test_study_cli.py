@@ -64,7 +64,7 @@ def test_json_then_resume_then_figures_pareto_and_recipe(
 def test_table_on_stdout_summary_on_stderr(grid_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, res = study(capsys, grid_file, "--out", tmp_path / "r.parquet", "--workers", "1", "--top", "2")
     assert code == 0
-    assert "best 2 of" in res.out and "dose_rate_j_g_s" in res.out
+    assert "best 2 of" in res.out and "(J/(g·s))" in res.out and "dose_rate_j_g_s" not in res.out  # names, not ids
     assert "6 points (6 computed, 0 from" in res.err
 
 
