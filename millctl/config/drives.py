@@ -155,7 +155,7 @@ class Drives(_Strict):
         if self.furnace is not FurnaceBackend.NONE:
             raise ValueError(
                 f"furnace = \"{self.furnace.value}\" beside CiA 402 drives is not driven by millctl: use "
-                "\"none\" (cold milling; docs/deployment.md#standard-cia-402-drives)"
+                "\"none\" (cold milling; docs/deployment.md#a-furnace-beside-the-drives-not-yet says why)"
             )
         ids: dict[int, str] = {self.controller_node_id: "drives.controller_node_id"}
         for motor in ("rotary", "vibration"):
