@@ -14,7 +14,7 @@ from millctl.physics.kernels.motion import _departure_gap, _pair
 from millctl.physics.kernels.trig import _trig
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
     """The function the root finder works on (code: N, N', −N, −N', sign separation, d separation)."""
     if code == _F_N:
@@ -31,7 +31,7 @@ def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
     return s if code == _F_SIGN_SEP else ds
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _brentq(code, p, st, tr, i, j, xa, xb, xtol, rtol):  # type: ignore[no-untyped-def]
     """Brent's method, scipy's brentq (Zeros/brentq.c), on _f; a bracket without a sign change returns its left end."""
     xpre, xcur = xa, xb
@@ -77,6 +77,6 @@ def _brentq(code, p, st, tr, i, j, xa, xb, xtol, rtol):  # type: ignore[no-untyp
     return xcur
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
     return max(tol, _RTOL * max(abs(a), abs(b)), 1e-300)
