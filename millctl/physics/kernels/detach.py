@@ -85,13 +85,14 @@ def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
         verdict = _cell_test(tr, i, sign, a, b, 0, m2, m3)
         if verdict == _CELL_POSITIVE:
             continue
-        root = _monotone_pieces_root(p, st, tr, i, sign, a, b) if verdict == _CELL_MONOTONE else _split_cell(
-            p, st, tr, i, sign, a, b, m2, m3
+        root = (
+            _monotone_pieces_root(p, st, tr, i, sign, a, b)
+            if verdict == _CELL_MONOTONE
+            else _split_cell(p, st, tr, i, sign, a, b, m2, m3)
         )
         if root < math.inf:
             return root
     return math.inf
-
 
 
 @njit(cache=True, error_model="numpy")
