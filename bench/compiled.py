@@ -50,19 +50,32 @@ def _cpu_and_wall(fn: Callable[[], object]) -> tuple[float, float]:
 
 
 def public_api(count: int, repeats: int = 5) -> dict[str, Any]:
-    """One event through the public API, ``methods.first_impact(scene, "exact")``, CPU µs per call (median)."""
+    """One event through the public API, ``methods.first_impact(scene, "exact")``, CPU µs per call (median).
+
+    The same scenes through the batch kernel (``rods="all"``, the same question) give the kernel's own
+    share, measured alternately in this run: ``wrapping_us`` is what the Python call path adds to it.
+    """
     scenes = random_scenes(corrected_model(), count, SEED)
+    rows = SceneBatch.from_scenes(scenes)
     first_impact(scenes[0], "exact")  # load the compiled code
+    first_impacts(SceneBatch(rows.rows[:2]), rods="all")
 
     def loop() -> None:
         for scene in scenes:
             first_impact(scene, "exact")
 
-    runs = [_cpu_and_wall(loop) for _ in range(repeats)]
+    runs, kernel = [], []
+    for _ in range(repeats):
+        runs.append(_cpu_and_wall(loop))
+        kernel.append(_cpu_and_wall(lambda: first_impacts(rows, rods="all"))[0])
+    us = float(np.median([c for c, _ in runs])) / count * 1e6
+    kernel_us = float(np.median(kernel)) / count * 1e6
     return {
         "scenes": count,
-        "us_per_event": float(np.median([c for c, _ in runs])) / count * 1e6,
+        "us_per_event": us,
         "us_per_event_wall": float(np.median([w for _, w in runs])) / count * 1e6,
+        "kernel_us_per_scene": kernel_us,
+        "wrapping_us": us - kernel_us,
     }
 
 

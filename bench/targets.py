@@ -101,6 +101,14 @@ def report(res: dict[str, Any]) -> list[str]:
         measured = "—" if r["measured"] is None else f"{r['measured']:.3g}"
         met = "—" if r["met"] is None else ("yes" if r["met"] else "**no**")
         out.append(f"| {r['name']} ({r['unit']}) | {measured} | {bound} {r['target']:.3g} | {met} |")
+    api = res.get("compiled", {}).get("public_api", {})
+    if "wrapping_us" in api:
+        out += [
+            "",
+            f"One event through the public API (`methods.first_impact(scene, \"exact\")`, a whole six-rod scene): "
+            f"{api['us_per_event']:.3g} µs = the kernel's {api['kernel_us_per_scene']:.3g} µs for the same scenes "
+            f"in the batch + {api['wrapping_us']:.3g} µs of Python call path.",
+        ]
     out += ["", load_line(res, *res.get("loads", {})), ""]
     return out
 

@@ -31,6 +31,7 @@ from millctl.physics import kernels
 from millctl.physics.events import ContactRow
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.ivp import ivp_first_contact
+from millctl.physics.kernels.scene_call import SceneCall
 from millctl.physics.legacy import legacy_first_contact
 from millctl.physics.legacy_kernel import legacy_first_contact_compiled
 from millctl.physics.model import Scene
@@ -139,23 +140,34 @@ def first_impact(
     raise PhysicsInputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
 
 
+_SCENE_CALL = SceneCall()
+"""The reused compiled call path of ``exact`` (per-thread arrays, nothing built per call)."""
+
+(_T, _ROD, _PARTNER, _X, _Y, _VN, _SPEED, _ENERGY, _VT) = (
+    kernels.OUT.index(name)
+    for name in (
+        "time_s", "rod", "partner", "x_m", "y_m", "normal_velocity_m_s", "speed_abs_m_s", "energy_j",
+        "tangential_velocity_m_s",
+    )
+)
+
+
 def _compiled(scene: Scene, tol_s: float, t_end_s: float) -> ImpactEvent | None:
     """The compiled kernel's first impact (every rod detaching at its own time)."""
-    row = kernels.first_impacts(kernels.scene_row(scene)[None, :], rods="all", horizon_s=t_end_s, tol_s=tol_s)[0]
-    col = kernels.OUT.index
-    if row[col("found")] != 1.0:
+    row = _SCENE_CALL.first_impact(scene, horizon_s=float(t_end_s), tol_s=float(tol_s))
+    if row is None:
         return None
     return ImpactEvent(
-        float(row[col("time_s")]),
-        int(row[col("rod")]),
-        int(row[col("partner")]),
-        float(row[col("x_m")]),
-        float(row[col("y_m")]),
-        float(row[col("normal_velocity_m_s")]),
-        float(row[col("speed_abs_m_s")]),
-        float(row[col("energy_j")]),
+        row[_T],
+        int(row[_ROD]),
+        int(row[_PARTNER]),
+        row[_X],
+        row[_Y],
+        row[_VN],
+        row[_SPEED],
+        row[_ENERGY],
         "exact",
-        float(row[col("tangential_velocity_m_s")]),
+        row[_VT],
     )
 
 

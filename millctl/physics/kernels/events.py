@@ -68,7 +68,7 @@ from millctl.physics.kernels.motion import _rel
 from millctl.physics.kernels.trig import _trig, _trig_rows
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     """Rod i leaves the wall at t: its flight state (eq. 2's velocity relative to the vial) and n_d.
 
@@ -87,31 +87,55 @@ def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     st[i, _S_ND] = 0.0 if exact else p[_R0] * true_n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
     x, y, _, _ = _rel(p, st, i, t)
     st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _scratch_len(n_max):  # type: ignore[no-untyped-def]
+    """Length of the one float64 buffer that holds :func:`_scratch_in`'s work arrays for up to n_max rods."""
+    pairs = n_max * (n_max + 1)
+    return pairs * 5 + pairs * 2 + n_max * 6 + n_max + n_max * (_TRIG_COLUMNS + _STATE_COLUMNS + 3)
+
+
+@njit(cache=True, error_model="numpy")
+def _scratch_in(buf, n_max):  # type: ignore[no-untyped-def]
+    """Work arrays of _event for up to n_max rods as views of one buffer (:func:`_scratch_len` long).
+
+    (pair columns, pair rod ids, rod columns, rod ids, trig rows, rod states, rod detachment columns);
+    the id arrays are int64 views of the buffer's float64 words. No allocation: the single-scene call
+    path (:class:`SceneCall`) keeps one buffer and makes these views per call.
+    """
+    pairs = n_max * (n_max + 1)
+    a = 0
+    b = a + pairs * 5
+    pair_columns = buf[a:b].reshape((pairs, 5))
+    c = b + pairs * 2
+    pair_ids = buf[b:c].view(np.int64).reshape((pairs, 2))
+    d = c + n_max * 6
+    rod_columns = buf[c:d].reshape((n_max, 6))
+    e = d + n_max
+    rod_ids = buf[d:e].view(np.int64)
+    f = e + n_max * _TRIG_COLUMNS
+    trig_rows = buf[e:f].reshape((n_max, _TRIG_COLUMNS))
+    g = f + n_max * _STATE_COLUMNS
+    states = buf[f:g].reshape((n_max, _STATE_COLUMNS))
+    detach_columns = buf[g : g + n_max * 3].reshape((n_max, 3))
+    return (pair_columns, pair_ids, rod_columns, rod_ids, trig_rows, states, detach_columns)
+
+
+@njit(cache=True, error_model="numpy")
 def _scratch(n_max):  # type: ignore[no-untyped-def]
     """Work arrays of _event for up to n_max rods, made once per batch (no allocation per scene).
 
     (pair columns, pair rod ids, rod columns, rod ids, trig rows, rod states, rod detachment columns)
     """
-    pairs = n_max * (n_max + 1)
-    return (
-        np.empty((pairs, 5)),
-        np.empty((pairs, 2), dtype=np.int64),
-        np.empty((n_max, 6)),
-        np.empty(n_max, dtype=np.int64),
-        np.zeros((n_max, _TRIG_COLUMNS)),
-        np.empty((n_max, _STATE_COLUMNS)),
-        np.empty((n_max, 3)),
-    )
+    return _scratch_in(np.zeros(_scratch_len(n_max)), n_max)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore[no-untyped-def]
     """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring.
 
@@ -192,7 +216,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
         t = t_det
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
     """Contact kinematics, lab contact point, absolute speed and energy (events.contact_kinematics, eq. 19)."""
     x, y, vx, vy = _rel(p, st, i, t)
@@ -229,13 +253,27 @@ def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
     out[_O_ALD] = (p[_A0] + p[_WV] * t0) % _TWO_PI
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _batch(rows, all_rods, horizon, flight_cap, tol):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], len(OUT)))
     scratch = _scratch(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
     for k in range(rows.shape[0]):
         _event(rows[k], all_rods, horizon, flight_cap, tol, out[k], scratch)
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def _scene_event(model_row, omega_r, lift_omega, theta0, lift_alpha0, all_rods, horizon, flight_cap, tol, out, buf):  # type: ignore[no-untyped-def]
+    """One scene's first impact into ``out``: ``model_row`` with the scene's speeds and phases, on ``buf``'s views.
+
+    ``buf``: :func:`_scratch_len` (of ``model_row``'s rods) + len(PARAMS) float64 words, its tail the scene row.
+    """
+    n = int(model_row[_N])
+    size = _scratch_len(n)
+    p = buf[size : size + len(PARAMS)]
+    p[:] = model_row
+    p[_WR], p[_WV], p[_TH0], p[_A0] = omega_r, lift_omega, theta0, lift_alpha0
+    _event(p, all_rods, horizon, flight_cap, tol, out, _scratch_in(buf[:size], n))
 
 
 def first_impacts(

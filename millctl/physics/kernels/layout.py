@@ -9,14 +9,25 @@ slip margins are trig sums, rows of the ``_T*`` columns (:mod:`.trig`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from millctl.config.models import ModelVariant
 from millctl.physics.model import Scene
 
 FloatArray = NDArray[np.float64]
+
+def leaf_kernel(fn: Callable[..., Any]) -> Any:
+    """``njit`` for a kernel that allocates nothing: cached, numpy's error model, no reference counting.
+
+    Without numba's reference counting (``_nrt=False``) a call with array arguments does not increment and
+    decrement each array's count atomically (the package docstring); such a kernel must not make arrays.
+    """
+    return njit(cache=True, error_model="numpy", _nrt=False)(fn)  # type: ignore[call-overload]
 
 
 PARAMS = (

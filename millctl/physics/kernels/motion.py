@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from millctl.physics.flight import ZERO_FLIGHT_RTOL
 from millctl.physics.kernels.layout import (
@@ -34,10 +33,11 @@ from millctl.physics.kernels.layout import (
     _WR,
     _WV,
     WALL,
+    leaf_kernel,
 )
 
 
-@njit(cache=True)
+@leaf_kernel
 def _rel(p, st, i, t):  # type: ignore[no-untyped-def]
     """(x, y, vx, vy) of rod i relative to the vial centre at t."""
     if st[i, _S_FLY] == 0.0:
@@ -50,7 +50,7 @@ def _rel(p, st, i, t):  # type: ignore[no-untyped-def]
     return _flying_rel(p, st, i, tau, math.cos(x), math.sin(x))
 
 
-@njit(cache=True)
+@leaf_kernel
 def _flying_rel(p, st, i, tau, c, s):  # type: ignore[no-untyped-def]
     """(x, y, vx, vy) of flying rod i, τ after its departure, given c, s = cos, sin of the cam's turn ω_v τ since.
 
@@ -72,7 +72,7 @@ _C2_SERIES = np.array([(-1.0) ** k / math.factorial(2 * k) for k in range(2, 12)
 _S3_SERIES = np.array([(-1.0) ** k / math.factorial(2 * k + 1) for k in range(1, 12)])
 
 
-@njit(cache=True)
+@leaf_kernel
 def _horner(coefficients, y):  # type: ignore[no-untyped-def]
     total = 0.0
     for k in range(coefficients.size - 1, -1, -1):
@@ -80,7 +80,7 @@ def _horner(coefficients, y):  # type: ignore[no-untyped-def]
     return total
 
 
-@njit(cache=True)
+@leaf_kernel
 def _c2_plus_half_over_x(x):  # type: ignore[no-untyped-def]
     """((cos x − 1)/x² + ½)/x, stable at small x (flight.py): x·Σ_{k≥2} (−x²)^(k−2)/(2k)! for |x| < 1."""
     if abs(x) < 1.0:
@@ -88,7 +88,7 @@ def _c2_plus_half_over_x(x):  # type: ignore[no-untyped-def]
     return ((math.cos(x) - 1.0) / (x * x) + 0.5) / x
 
 
-@njit(cache=True)
+@leaf_kernel
 def _s3(x):  # type: ignore[no-untyped-def]
     """(sin x − x)/x³, stable at small x (flight.py): Σ_{k≥1} (−x²)^(k−1)/(2k+1)! for |x| < 1."""
     if abs(x) < 1.0:
@@ -96,7 +96,7 @@ def _s3(x):  # type: ignore[no-untyped-def]
     return (math.sin(x) - x) / (x * x * x)
 
 
-@njit(cache=True)
+@leaf_kernel
 def _departure_gap(p, st, i, t):  # type: ignore[no-untyped-def]
     """(r0² − |d|²)/τ² of a rod that left the wall at t0, or /τ³ when n_d = 0 (flight.departure_wall_gap)."""
     t0 = st[i, _S_T0]
@@ -115,7 +115,7 @@ def _departure_gap(p, st, i, t):  # type: ignore[no-untyped-def]
     return -(n_d + tau * reduced)
 
 
-@njit(cache=True)
+@leaf_kernel
 def _zero_length_departure(p, st, i):  # type: ignore[no-untyped-def]
     """The zero-length rule of flight.zero_length_departure: reduced gap at τ = 0 ≤ ZERO_FLIGHT_RTOL × its scale."""
     r0, w_r, w_v, r_d, g = p[_R0], p[_WR], p[_WV], p[_RD], p[_G]
@@ -126,7 +126,7 @@ def _zero_length_departure(p, st, i):  # type: ignore[no-untyped-def]
     return _departure_gap(p, st, i, st[i, _S_T0]) <= ZERO_FLIGHT_RTOL * scale
 
 
-@njit(cache=True)
+@leaf_kernel
 def _pair(p, st, i, j, t):  # type: ignore[no-untyped-def]
     """Separation (> 0 apart), its derivative and the relative speed squared of rod i and j (WALL: the wall)."""
     x, y, vx, vy = _rel(p, st, i, t)

@@ -7,14 +7,23 @@ derivative (contacts), evaluated by :func:`_f`.
 
 from __future__ import annotations
 
-from numba import njit
-
-from millctl.physics.kernels.layout import _F_DN, _F_N, _F_NEG_DN, _F_NEG_N, _F_SIGN_SEP, _MAXITER, _RTOL, _S_FLY, WALL
+from millctl.physics.kernels.layout import (
+    _F_DN,
+    _F_N,
+    _F_NEG_DN,
+    _F_NEG_N,
+    _F_SIGN_SEP,
+    _MAXITER,
+    _RTOL,
+    _S_FLY,
+    WALL,
+    leaf_kernel,
+)
 from millctl.physics.kernels.motion import _departure_gap, _pair
 from millctl.physics.kernels.trig import _trig
 
 
-@njit(cache=True)
+@leaf_kernel
 def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
     """The function the root finder works on (code: N, N', −N, −N', sign separation, d separation)."""
     if code == _F_N:
@@ -31,7 +40,7 @@ def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
     return s if code == _F_SIGN_SEP else ds
 
 
-@njit(cache=True)
+@leaf_kernel
 def _brentq(code, p, st, tr, i, j, xa, xb, xtol, rtol):  # type: ignore[no-untyped-def]
     """Brent's method, scipy's brentq (Zeros/brentq.c), on _f; a bracket without a sign change returns its left end."""
     xpre, xcur = xa, xb
@@ -77,6 +86,6 @@ def _brentq(code, p, st, tr, i, j, xa, xb, xtol, rtol):  # type: ignore[no-untyp
     return xcur
 
 
-@njit(cache=True)
+@leaf_kernel
 def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
     return max(tol, _RTOL * max(abs(a), abs(b)), 1e-300)

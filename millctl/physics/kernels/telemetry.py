@@ -46,7 +46,7 @@ from millctl.physics.kernels.layout import (
 from millctl.physics.kernels.trig import _set_term, _trig
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
     """Rows 0, 1 of ``rows``: μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (slip.no_slip_check).
 
@@ -70,7 +70,7 @@ def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
     return rows
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
     """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never).
 
@@ -86,7 +86,7 @@ def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
     return onset
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work, stride):  # type: ignore[no-untyped-def]
     """The K telemetry samples of one scene into ``out`` (K rows of :data:`TELEMETRY`), no allocation.
 
@@ -124,7 +124,7 @@ def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, wo
             out[k, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
     """The work arrays of :func:`_telemetry_into` for scenes of up to n_max rods (made once per batch)."""
     return (
@@ -137,7 +137,7 @@ def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
     out = np.empty((phases, len(TELEMETRY)))
     _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])), 1)
@@ -164,7 +164,7 @@ def telemetry_samples(
     return result
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu, stride):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
     work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)

@@ -27,15 +27,16 @@ from millctl.physics.kernels.layout import (
     _TW,
     _WR,
     _WV,
+    leaf_kernel,
 )
 
 
-@njit(cache=True)
+@leaf_kernel
 def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyped-def]
     rows[i, _TA + k], rows[i, _TW + k], rows[i, _TP + k] = amplitude, frequency, phase
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
     """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling.
 
@@ -59,7 +60,7 @@ def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
     return rows
 
 
-@njit(cache=True)
+@leaf_kernel
 def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
     """Sign × the order-th time derivative of row i at t."""
     total = tr[i, 0] if order == 0 else 0.0
@@ -70,7 +71,7 @@ def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
     return sign * total
 
 
-@njit(cache=True)
+@leaf_kernel
 def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
     """Sign × (value, first, second derivative) of row i at t: one sine and cosine per term serve all three."""
     f0, f1, f2 = tr[i, 0], 0.0, 0.0
@@ -84,7 +85,7 @@ def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
     return sign * f0, sign * f1, sign * f2
 
 
-@njit(cache=True)
+@leaf_kernel
 def _trig_bound(tr, i, order):  # type: ignore[no-untyped-def]
     total = 0.0
     for k in range(int(tr[i, _T_COUNT])):

@@ -1,0 +1,61 @@
+"""The public API's reused single-scene path gives the batch kernel's rows bit for bit."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+
+import numpy as np
+
+from millctl.physics import kernels
+from millctl.physics.agreement import random_scenes
+from millctl.physics.model import MillModel
+
+
+def _batch_row(scene, rods: str = "all") -> list[float] | None:  # type: ignore[no-untyped-def]
+    row = kernels.first_impacts(kernels.scene_row(scene)[None, :], rods=rods, horizon_s=5.0)[0]
+    return None if row[kernels.OUT.index("found")] != 1.0 else row.tolist()
+
+
+def _same(a: list[float] | None, b: list[float] | None) -> bool:
+    if a is None or b is None:
+        return a is b
+    return bool(np.array_equal(np.array(a), np.array(b), equal_nan=True))
+
+
+def test_scene_call_is_the_batch_row_across_models(set_a_corrected: MillModel, set_a_paper: MillModel) -> None:
+    call = kernels.SceneCall()
+    scenes = random_scenes(set_a_corrected, 40, 5) + random_scenes(set_a_paper, 40, 6)
+    few_rods = dataclasses.replace(set_a_corrected, n_rods=2)
+    scenes += random_scenes(few_rods, 20, 7) + random_scenes(set_a_corrected, 10, 8)  # a model with fewer rods between
+    for scene in scenes:
+        assert _same(call.first_impact(scene), _batch_row(scene)), scene
+
+
+def test_scene_call_one_rod_matches_the_batch(set_a_corrected: MillModel) -> None:
+    call = kernels.SceneCall()
+    for scene in random_scenes(set_a_corrected, 30, 9):
+        mine = call.first_impact(scene, all_rods=False, horizon_s=math.inf, flight_cap_s=2.0)
+        raw = kernels.first_impacts(kernels.scene_row(scene)[None, :], rods="one", horizon_s=math.inf, flight_cap_s=2.0)
+        want = None if raw[0, kernels.OUT.index("found")] != 1.0 else raw[0].tolist()
+        assert _same(mine, want), scene
+
+
+def test_threads_do_not_share_the_work_arrays(set_a_corrected: MillModel) -> None:
+    call = kernels.SceneCall()
+    scenes = random_scenes(set_a_corrected, 60, 10)
+    want = [_batch_row(s) for s in scenes]
+    got: dict[int, list[list[float] | None]] = {}
+
+    def run(k: int) -> None:
+        got[k] = [call.first_impact(s) for s in (scenes if k % 2 == 0 else scenes[::-1])]
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for k, rows in got.items():
+        ordered = rows if k % 2 == 0 else rows[::-1]
+        assert all(_same(a, b) for a, b in zip(ordered, want, strict=True))
