@@ -65,12 +65,16 @@ class MillView(App[None]):
     VERTICAL_BREAKPOINTS = [(0, "-short"), (SHORT_BELOW_ROWS, "-tall")]  # noqa: RUF012
 
     def __init__(self, socket_path: str | None = None, *, config: str | None = None, live: bool = True,
-                 sim: bool = False) -> None:
-        """``live=False`` shows only what :meth:`apply_status` and friends are given (tests, snapshots)."""
+                 sim: bool = False, web: bool = False) -> None:
+        """``live=False`` shows only what :meth:`apply_status` and friends are given (tests, snapshots).
+
+        ``web``: a page of ``millctl tui --web``, read-only until its operator takes control (``c``).
+        """
         super().__init__()
         self.link = ServiceLink(socket_path, config=config)
         self.live = live
         self.sim = sim
+        self.web = web
         self.status: StatusOut | None = None
         self.control: ControlOut | None = None
         self.recipe: RecipeOut | None = None
@@ -235,6 +239,8 @@ class MillView(App[None]):
             self._applies = applies
             self.refresh_bindings()
         holder = "you" if self.link.holds_control else ((self.control.holder if self.control else None) or "nobody")
+        if self.web and not self.link.holds_control:
+            holder += " · this page read-only (c)"
         where = "online" if self.online else "OFFLINE"
         text = Text.assemble(("millctl ", "bold"), (f" {state or '—'} ", state_style(state)), ("  control ", "dim"),
                              holder, ("  service ", "dim"), (where, "green" if self.online else "bold white on red"),
