@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import signal
 
 from millctl.cli.output import stderr_console
@@ -86,7 +87,7 @@ def _tui(args: argparse.Namespace) -> int:
 def _web(args: argparse.Namespace, socket_path: str | None, *, sim: bool) -> int:
     """Serve the TUI to browsers on loopback until Ctrl+C (docs/operations.md#the-tui-in-a-browser)."""
     try:
-        from millctl.tui import web
+        web = importlib.import_module("millctl.tui.web")  # imports textual-serve, an optional dependency
     except ImportError as exc:
         raise InvalidInputError(
             f"millctl tui --web needs textual-serve, which is not installed here ({exc}): "
