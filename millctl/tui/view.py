@@ -38,7 +38,7 @@ from millctl.tui.format import state_style
 from millctl.tui.legible import LegibleMonochrome
 from millctl.tui.link import ServiceLink, quiet_raced_reads
 from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
-from millctl.tui.styles import CSS, NARROW_BELOW_COLUMNS, SHORT_BELOW_ROWS
+from millctl.tui.styles import CSS, NARROW_BELOW_COLUMNS, SHORT_BELOW_ROWS, SHORT_TOAST_CHARS
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +122,21 @@ class MillView(App[None]):
             error = event.worker.error
             log.error("worker %s failed: %r", event.worker.name, error, exc_info=error)
             self.notify(f"internal error in {event.worker.name}: {error!r}", severity="error", markup=False)
+
+    def notify(self, message: str, *, title: str = "", severity: SeverityLevel = "information",
+               timeout: float | None = None, markup: bool = True) -> None:
+        """A notification; on a short terminal only the newest shows (over the events panel: styles.CSS).
+
+        There, one too long for the toast's three rows is written whole to the event log as well.
+        """
+        if self.size.height < SHORT_BELOW_ROWS:
+            self.clear_notifications()
+            if len(message) > SHORT_TOAST_CHARS and self.screen_stack:
+                stamp = time.strftime("%H:%M:%S")
+                line = Text.assemble((f"{stamp} ", "dim"), (f"{'tui':<8} ", "dim"), (f"{title}: " if title else "",
+                                     "dim"), Text.from_markup(message) if markup else message)
+                self.main_screen.query_one("#events", RichLog).write(line)
+        super().notify(message, title=title, severity=severity, timeout=timeout, markup=markup)
 
     def get_line_filters(self) -> Sequence[LineFilter]:
         """Under NO_COLOR, greyscale that keeps every text readable (:mod:`millctl.tui.legible`)."""
