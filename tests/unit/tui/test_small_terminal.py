@@ -219,3 +219,12 @@ async def test_at_80_by_24_notifications_leave_the_fields_in_sight(dialog: bool)
         for i in range(3):  # too long for the toast's rows: each is in the event log, whole
             assert any(f"({i})" in line for line in logged), logged
         assert any("raise ω_v" in line for line in logged), logged
+
+
+@pytest.mark.parametrize("size", SIZES, ids=["80x24", "120x40"])
+def test_main_screen_snapshot_without_colour(snap_compare: Any, utc: None, size: tuple[int, int],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The main screen under NO_COLOR at both sizes (the colour ones are test_snapshot's)."""
+    monkeypatch.setenv("NO_COLOR", "1")
+    app = MillApp(frozen.SOCKET, live=False)
+    assert snap_compare(app, terminal_size=size, run_before=feeder(app))
