@@ -30,6 +30,10 @@ Call = Callable[[AsyncClient], Awaitable[BaseModel]]
 QUIT_RELEASE_S = 2.0
 """At most this long is spent giving control back when quitting (s)."""
 
+READ_ONLY = ("not sent: this browser page is read-only until it takes control (press c); stop (o) and E-stop "
+             "(Ctrl+X) need no control")
+"""What a web page's command that needs the lease answers before its operator has taken control."""
+
 
 def recipe_folders(service: ServiceOut | None) -> list[Path]:
     """Where the recipe picker looks: ``config/recipes`` here, and ``recipes`` beside the service's config."""
@@ -47,6 +51,9 @@ class Commanding(MillView):
         self.run_worker(self._send(what, call, take=take), group="command", exit_on_error=False)
 
     async def _send(self, what: str, call: Call, *, take: bool = True) -> bool:
+        if take and self.web and not self.link.holds_control:
+            self.notify(READ_ONLY, title=what, severity="warning", timeout=8.0, markup=False)
+            return False
         try:
             result = await (self.link.command(call) if take else call(self.link.client))
         except LINK_ERRORS as exc:
@@ -209,4 +216,4 @@ class Commanding(MillView):
         self.exit()
 
 
-__all__ = ["QUIT_RELEASE_S", "Commanding", "recipe_folders"]
+__all__ = ["QUIT_RELEASE_S", "READ_ONLY", "Commanding", "recipe_folders"]

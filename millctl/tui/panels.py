@@ -17,6 +17,7 @@ from millctl.api import BusCondition, ControlOut, EnvelopeOut, RecipeOut, Status
 from millctl.client import describe_bus_health
 from millctl.tui.format import duration, e2e_errors, num, state_style
 from millctl.tui.plot import Curve, operating_points, render_plot
+from millctl.tui.styles import NARROW_BELOW_COLUMNS
 
 TREND_SAMPLES = 120
 """Samples kept in each trend sparkline (the service streams a status every 0.25 s: 30 s)."""
@@ -36,6 +37,21 @@ class TrendPanel(Vertical):
         """A text block and the trend."""
         yield Static(id=f"{self.id}-text", classes="panel-text")
         yield Sparkline([], id=f"{self.id}-trend", classes="trend")
+
+    @property
+    def compact(self) -> bool:
+        """A narrow terminal (80 columns: 26 of text) has no room for "setpoint 180.0 → target 180.0 rpm"."""
+        return self.app.size.width < NARROW_BELOW_COLUMNS
+
+    @property
+    def setpoint_label(self) -> str:
+        """The label before the ramped setpoint."""
+        return "set " if self.compact else "setpoint "
+
+    @property
+    def target_label(self) -> str:
+        """The label between the ramped setpoint and the ramp's target (never cut off: its value follows)."""
+        return " → " if self.compact else " → target "
 
     def set_content(self, text: Text, sample: float | None) -> None:
         """Show ``text`` and append ``sample`` (skipped when unknown) to the trend."""
@@ -58,8 +74,8 @@ class DrivePanel(TrendPanel):
         measured = getattr(status, f"measured_{a}_rpm")
         text = Text.assemble(
             ("measured ", "dim"), (num(measured, ".1f", " rpm"), "bold"), "\n",
-            ("setpoint ", "dim"), num(getattr(status, f"setpoint_{a}_rpm"), ".1f"),
-            (" → target ", "dim"), num(getattr(status, f"target_{a}_rpm"), ".1f", " rpm"), "\n",
+            (self.setpoint_label, "dim"), num(getattr(status, f"setpoint_{a}_rpm"), ".1f"),
+            (self.target_label, "dim"), num(getattr(status, f"target_{a}_rpm"), ".1f", " rpm"), "\n",
             ("torque ", "dim"), num(getattr(status, f"{a}_torque_nm"), ".2f", " N·m"),
         )
         self.set_content(text, measured)
@@ -76,8 +92,9 @@ class FurnacePanel(TrendPanel):
         on = status.heater_on
         text = Text.assemble(
             ("measured ", "dim"), (num(temp, ".1f", " °C"), "bold"), "\n",
-            ("setpoint ", "dim"), num(status.furnace_setpoint_c, ".1f"),
-            (" → target ", "dim"), num(target, ".1f", " °C") if target is not None else ("heater off", "dim"), "\n",
+            (self.setpoint_label, "dim"), num(status.furnace_setpoint_c, ".1f"),
+            (self.target_label, "dim"),
+            num(target, ".1f", " °C") if target is not None else ("heater off", "dim"), "\n",
             ("heater ", "dim"), num(heater, ".0f", " %"), ("" if on is None else (" on" if on else " off"), "dim"),
         )
         self.set_content(text, temp)

@@ -53,6 +53,10 @@ Screen.-short .panel-text { height: 1fr; }
 Screen.-short #row1 { height: 1fr; min-height: 12; }
 Screen.-short #row2 { height: 7; }
 Screen.-short #events { height: 3; min-height: 3; }
+/* short terminals: one notification at a time, at most 3 rows, over the events panel (never over the drives,
+   the envelope or a dialog's fields; its whole text goes to the event log when cut: MillView.notify) */
+Screen.-short ToastHolder { max-height: 3; }
+Screen.-short Toast { padding: 0 1; margin-top: 0; width: 62; max-width: 78%; max-height: 3; }
 Screen.-narrow #physics { display: none; }
 Screen.-narrow #links { width: 1fr; min-width: 0; }
 Screen.-narrow #left { min-width: 30; }
@@ -63,4 +67,8 @@ SHORT_BELOW_ROWS = 34
 NARROW_BELOW_COLUMNS = 100
 """Terminals with fewer columns get the narrow layout (class ``-narrow``)."""
 
-__all__ = ["CSS", "NARROW_BELOW_COLUMNS", "SHORT_BELOW_ROWS"]
+SHORT_TOAST_CHARS = 2 * 50
+"""What a notification on a short terminal shows at most (two lines of a 60-column toast, with room for word
+wrapping); longer ones are cut on screen and written whole to the event log."""
+
+__all__ = ["CSS", "NARROW_BELOW_COLUMNS", "SHORT_BELOW_ROWS", "SHORT_TOAST_CHARS"]

@@ -38,7 +38,7 @@ from millctl.tui.format import state_style
 from millctl.tui.legible import LegibleMonochrome
 from millctl.tui.link import ServiceLink, quiet_raced_reads
 from millctl.tui.panels import DrivePanel, EnvelopePanel, FurnacePanel, LinkPanel, PhysicsPanel, StatePanel
-from millctl.tui.styles import CSS, NARROW_BELOW_COLUMNS, SHORT_BELOW_ROWS
+from millctl.tui.styles import CSS, NARROW_BELOW_COLUMNS, SHORT_BELOW_ROWS, SHORT_TOAST_CHARS
 
 log = logging.getLogger(__name__)
 
@@ -65,12 +65,16 @@ class MillView(App[None]):
     VERTICAL_BREAKPOINTS = [(0, "-short"), (SHORT_BELOW_ROWS, "-tall")]  # noqa: RUF012
 
     def __init__(self, socket_path: str | None = None, *, config: str | None = None, live: bool = True,
-                 sim: bool = False) -> None:
-        """``live=False`` shows only what :meth:`apply_status` and friends are given (tests, snapshots)."""
+                 sim: bool = False, web: bool = False) -> None:
+        """``live=False`` shows only what :meth:`apply_status` and friends are given (tests, snapshots).
+
+        ``web``: a page of ``millctl tui --web``, read-only until its operator takes control (``c``).
+        """
         super().__init__()
         self.link = ServiceLink(socket_path, config=config)
         self.live = live
         self.sim = sim
+        self.web = web
         self.status: StatusOut | None = None
         self.control: ControlOut | None = None
         self.recipe: RecipeOut | None = None
@@ -118,6 +122,21 @@ class MillView(App[None]):
             error = event.worker.error
             log.error("worker %s failed: %r", event.worker.name, error, exc_info=error)
             self.notify(f"internal error in {event.worker.name}: {error!r}", severity="error", markup=False)
+
+    def notify(self, message: str, *, title: str = "", severity: SeverityLevel = "information",
+               timeout: float | None = None, markup: bool = True) -> None:
+        """A notification; on a short terminal only the newest shows (over the events panel: styles.CSS).
+
+        There, one too long for the toast's three rows is written whole to the event log as well.
+        """
+        if self.size.height < SHORT_BELOW_ROWS:
+            self.clear_notifications()
+            if len(message) > SHORT_TOAST_CHARS and self.screen_stack:
+                stamp = time.strftime("%H:%M:%S")
+                line = Text.assemble((f"{stamp} ", "dim"), (f"{'tui':<8} ", "dim"), (f"{title}: " if title else "",
+                                     "dim"), Text.from_markup(message) if markup else message)
+                self.main_screen.query_one("#events", RichLog).write(line)
+        super().notify(message, title=title, severity=severity, timeout=timeout, markup=markup)
 
     def get_line_filters(self) -> Sequence[LineFilter]:
         """Under NO_COLOR, greyscale that keeps every text readable (:mod:`millctl.tui.legible`)."""
@@ -235,6 +254,8 @@ class MillView(App[None]):
             self._applies = applies
             self.refresh_bindings()
         holder = "you" if self.link.holds_control else ((self.control.holder if self.control else None) or "nobody")
+        if self.web and not self.link.holds_control:
+            holder += " · this page read-only (c)"
         where = "online" if self.online else "OFFLINE"
         text = Text.assemble(("millctl ", "bold"), (f" {state or '—'} ", state_style(state)), ("  control ", "dim"),
                              holder, ("  service ", "dim"), (where, "green" if self.online else "bold white on red"),

@@ -1,7 +1,8 @@
 """The real TUI in a real pseudo-terminal of 80 × 24, read through a terminal emulator (pyte) as a person sees it.
 
 Issue 39, item 4: at 80 × 24 the state bar, the set dialog's verdict and its
-Enter hint are on screen, the footer offers q, and q quits cleanly.
+Enter hint are on screen, the footer offers q, the drives' and the furnace's ramp
+targets are not cut off, and q quits cleanly.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import contextlib
 import fcntl
 import os
 import pty
+import re
 import select
 import struct
 import sys
@@ -69,6 +71,9 @@ def test_at_80_by_24_the_state_bar_the_verdict_and_quit_are_on_screen(fault_serv
         assert "q Quit" in rows[-1], rows[-1]
         os.write(fd, b"a")  # set needs ARMED
         term.until("ARMED in the state bar", lambda r: "ARMED" in r[0])
+        term.until("each drive's ramp target in full (it was cut after 'target')",
+                   lambda r: sum(bool(re.search(r"set \S+ → \S+ rpm", row)) for row in r) == 2
+                   and any(re.search(r"set \S+ → (\S+ °C|heater off)", row) for row in r))
         os.write(fd, b"s")
         rows = term.until("the set dialog's limit, verdict and keys",
                           lambda r: any("Enter: check and send" in row for row in r)

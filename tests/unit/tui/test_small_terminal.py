@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from textual.geometry import Region
 from textual.widget import Widget
-from textual.widgets import Checkbox, Footer, Input, Static
+from textual.widgets import Checkbox, Footer, Input, RichLog, Static
 
 from millctl.tui import MillApp
 from millctl.tui.modals import SetpointsModal
@@ -147,3 +147,84 @@ async def test_no_legend_names_a_colour_under_no_color(size: tuple[int, int], no
     for text in (main, envelope):
         named = "green" in text or "yellow" in text
         assert named is not no_color, text
+
+
+def _lines(widget: Widget) -> list[str]:
+    region = widget.region
+    return ["".join(s.text for s in strip) for strip in widget.render_lines(Region(0, 0, region.width, region.height))]
+
+
+@pytest.mark.parametrize("no_color", [False, True], ids=["colour", "no-color"])
+@pytest.mark.parametrize("size", SIZES, ids=["80x24", "120x40"])
+async def test_the_targets_are_not_cut_off(size: tuple[int, int], no_color: bool,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each drive's and the furnace's ramp target is on screen in full (at 80 × 24 it was cut after "target")."""
+    if no_color:
+        monkeypatch.setenv("NO_COLOR", "1")
+    else:
+        monkeypatch.delenv("NO_COLOR", raising=False)
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=size) as pilot:
+        await feeder(app)(pilot)
+        await pilot.pause()
+        status = app.status
+        assert status is not None and status.furnace_target_c is not None
+        for panel, target in (("rotary", f"{status.target_rotary_rpm:.1f} rpm"),
+                              ("vibration", f"{status.target_vibration_rpm:.1f} rpm"),
+                              ("furnace", f"{status.furnace_target_c:.1f} °C")):
+            lines = _lines(app.query_one(f"#{panel}-text", Static))
+            ramp = [line for line in lines if "→" in line]
+            assert ramp and target in ramp[0], (panel, lines)
+
+
+async def _notify_three(app: MillApp, pilot: Any) -> list[str]:
+    sent = [f"refused by the interlock ({i}): ω_r 300 rpm is above the limit 143.6 rpm at ω_v 800 rpm; "
+            "nothing was sent; lower ω_r or raise ω_v" for i in range(3)]
+    for message in sent:
+        app.notify(message, title="set", severity="error", markup=False)
+        await pilot.pause(0.1)
+    for _ in range(5):  # the rack's removals and its scroll to the newest land over the next refreshes
+        await pilot.pause(0.1)
+    return sent
+
+
+def _toasts_on_screen(app: MillApp, rows: int) -> list[Region]:
+    from textual.widgets._toast import Toast, ToastRack
+
+    rack = app.screen.get_child_by_type(ToastRack)
+    return [t.region for t in rack.walk_children(Toast) if t.region.height and t.region.y < rows]
+
+
+@pytest.mark.parametrize("dialog", [False, True], ids=["main", "set-dialog"])
+async def test_at_80_by_24_notifications_leave_the_fields_in_sight(dialog: bool) -> None:
+    """One notification at a time, over the events panel: not over the drives, envelope, controller or a dialog."""
+    app = MillApp(frozen.SOCKET, live=False)
+    async with app.run_test(size=(80, 24), notifications=True) as pilot:
+        if dialog:
+            modal = await _open_set_dialog(app, pilot)
+        else:
+            await feeder(app)(pilot)
+        sent = await _notify_three(app, pilot)
+        toasts = _toasts_on_screen(app, 24)
+        assert len(toasts) == 1, (toasts, _toasts_on_screen(app, 99))
+        main = app.main_screen
+        covered = [main.query_one(s).region for s in ("#rotary", "#vibration", "#furnace", "#envelope", "#state")]
+        if dialog:
+            covered += [modal.query_one(s).region for s in ("#vib", "#rot", "#temp", "#linear", "#verdict", ".hint")]
+        for region in covered:
+            assert not toasts[0].overlaps(region), (toasts[0], region)
+        assert toasts[0].bottom <= 23  # not over the footer
+        assert [n.message for n in app._notifications] == sent[-1:]  # the newest, and only it
+        logged = [strip.text for strip in main.query_one("#events", RichLog).lines]
+        for i in range(3):  # too long for the toast's rows: each is in the event log, whole
+            assert any(f"({i})" in line for line in logged), logged
+        assert any("raise ω_v" in line for line in logged), logged
+
+
+@pytest.mark.parametrize("size", SIZES, ids=["80x24", "120x40"])
+def test_main_screen_snapshot_without_colour(snap_compare: Any, utc: None, size: tuple[int, int],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """The main screen under NO_COLOR at both sizes (the colour ones are test_snapshot's)."""
+    monkeypatch.setenv("NO_COLOR", "1")
+    app = MillApp(frozen.SOCKET, live=False)
+    assert snap_compare(app, terminal_size=size, run_before=feeder(app))
