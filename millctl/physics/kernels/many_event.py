@@ -253,11 +253,33 @@ def _pair_now(p, pos, i, j):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, start, stop):  # type: ignore[no-untyped-def]
-    """Samples start..stop−1 of a chunk: every pair's separation and derivative, the largest relative speed²."""
+def _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, start, stop, turn, h):  # type: ignore[no-untyped-def]
+    """Samples start..stop−1 of a chunk: every pair's separation and derivative, the largest relative speed².
+
+    Rods move by phasors (``turn``: the cos, sin of a held rod's angle θ or of a flying rod's cam turn ω_v τ
+    at the last filled sample, turned by one step's ω h; the last row the steps' cos ω_r h, sin ω_r h, cos ω_v h,
+    sin ω_v h), evaluated afresh at a sample the end clamped: a few ulp from the reference's cos and sin,
+    which only decide which intervals are resolved (the roots come from :func:`_g`, exactly).
+    """
+    cr, sr, cv, sv = turn[n, 0], turn[n, 1], turn[n, 2], turn[n, 3]
+    r0, w_r = p[_R0], p[_WR]
     for s_ in range(start, stop):
+        t = ts[s_ + 1]
+        exact = t != ts[0] + h * (s_ + 1)
         for r in range(n):
-            pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _rel(p, st, r, ts[s_ + 1])
+            held = st[r, _S_FLY] == 0.0
+            if exact:
+                x = st[r, _S_TH] + w_r * (t - st[r, _S_T0]) if held else p[_WV] * (t - st[r, _S_T0])
+                turn[r, 0], turn[r, 1] = math.cos(x), math.sin(x)
+            elif held:
+                turn[r, 0], turn[r, 1] = turn[r, 0] * cr - turn[r, 1] * sr, turn[r, 1] * cr + turn[r, 0] * sr
+            else:
+                turn[r, 0], turn[r, 1] = turn[r, 0] * cv - turn[r, 1] * sv, turn[r, 1] * cv + turn[r, 0] * sv
+            c, sn = turn[r, 0], turn[r, 1]
+            if held:
+                pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = r0 * c, r0 * sn, -r0 * w_r * sn, r0 * w_r * c
+            else:
+                pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _flying_rel(p, st, r, t - st[r, _S_T0], c, sn)
         for k in range(count):
             s, ds, v2 = _pair_now(p, pos, pi[k], pj[k])
             sep[k, s_], dsep[k, s_] = s, ds
@@ -270,7 +292,7 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
     """events.earliest_contact: (t, rod, partner, τ) of the first contact of a flying rod in [t_start, t_end]."""
     n = int(p[_N])
     pi, pj, reduced = w[0], w[1], w[2]
-    sep, dsep, prev, pos, ts = w[3], w[4], w[5], w[6], w[7]
+    sep, dsep, prev, pos, ts, turn = w[3], w[4], w[5], w[6], w[7], w[8]
     count = 0
     for i in range(n):
         if st[i, _S_FLY] != 0.0:
@@ -303,11 +325,17 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
     accel = 2.0 * max(p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR])
     r0 = p[_R0]
     near = _NEAR_ZERO * r0 * r0
+    turn[n, 0], turn[n, 1] = math.cos(p[_WR] * h), math.sin(p[_WR] * h)
+    turn[n, 2], turn[n, 3] = math.cos(p[_WV] * h), math.sin(p[_WV] * h)
     t_prev = t_start
     while t_prev < t_end:
         ts[0] = t_prev
         for s_ in range(1, SCAN_SAMPLES + 1):
             ts[s_] = min(t_prev + h * s_, t_end)
+        for r in range(n):
+            held = st[r, _S_FLY] == 0.0
+            x = st[r, _S_TH] + p[_WR] * (t_prev - st[r, _S_T0]) if held else p[_WV] * (t_prev - st[r, _S_T0])
+            turn[r, 0], turn[r, 1] = math.cos(x), math.sin(x)
         for k in range(count):
             prev[k, 2] = 0.0
         # samples are filled as the candidates need them; the margin of a minimum needs the chunk's largest
@@ -319,7 +347,7 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
             if best_k >= 0 and t_a >= best:
                 break
             if filled <= s_:
-                filled = _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, s_ + 1)
+                filled = _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, s_ + 1, turn, h)
             if not t_b > t_a:
                 continue
             for k in range(count):
@@ -329,7 +357,9 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
                 hit = s <= 0.0 or abs(s) < near
                 if not hit and ds_before < 0.0 < ds:
                     if filled < SCAN_SAMPLES:
-                        filled = _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, SCAN_SAMPLES)
+                        filled = _fill(
+                            p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, SCAN_SAMPLES, turn, h
+                        )
                     margin = 2.0 * ((math.sqrt(prev[k, 2]) + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel) * h * h / 8.0
                     hit = min(s_before, s) <= margin
                 if not hit:
@@ -410,7 +440,7 @@ def _bounce(p, st, book, excluded, i, j, t):  # type: ignore[no-untyped-def]
 
 @njit(cache=True)
 def _work(n):  # type: ignore[no-untyped-def]
-    """Work arrays of the contact search for n rods (pair ids, reduced flags, chunk samples, positions, times)."""
+    """Work arrays of the contact search for n rods: pair ids, reduced flags, chunk samples, positions, phasors."""
     pairs = n * n + 1
     return (
         np.empty(pairs, dtype=np.int64),
@@ -421,6 +451,7 @@ def _work(n):  # type: ignore[no-untyped-def]
         np.empty((pairs, 3)),
         np.empty((n, 4)),
         np.empty(SCAN_SAMPLES + 1),
+        np.empty((n + 1, 4)),
     )
 
 
