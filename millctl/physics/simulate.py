@@ -173,6 +173,10 @@ def _depart(run: _Run, rod: int, t_s: float) -> None:
     run.unsupported.discard(rod)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi)
     run.detachments.append((t_s, rod, theta, alpha))
+    # a neighbour it leaves touching (a separation of rounding size) is not a contact: excluded until apart
+    for j in range(len(run.states)):
+        if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s, RELEASE_GAP_RTOL * scene.model.r0_m**2):
+            run.excluded.add((min(rod, j), max(rod, j)))
 
 
 def _record(run: _Run, c: Contact) -> None:
@@ -264,8 +268,10 @@ def simulate(
     )
 
 
-def _overlapping(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
+def _overlapping(run: _Run, pair: tuple[int, int], t_s: float, slack_m2: float = 0.0) -> bool:
     """Centres no further apart than the contact distance (a re-pinned rod resting on a neighbour).
+
+    ``slack_m2``: a separation |d|² − (2 r_r)² up to this still counts (a departing rod: rounding's size).
 
     Only such pairs are excluded when a rod is put back on the wall: two rods that merely
     ride side by side on the wall are neither apart-and-separating nor touching, and must
@@ -273,7 +279,7 @@ def _overlapping(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
     """
     xa, ya, _, _ = run.states[pair[0]].rel(run.scene, t_s)
     xb, yb, _, _ = run.states[pair[1]].rel(run.scene, t_s)
-    return (xa - xb) ** 2 + (ya - yb) ** 2 <= run.scene.model.contact_distance_m**2
+    return (xa - xb) ** 2 + (ya - yb) ** 2 - run.scene.model.contact_distance_m**2 <= slack_m2
 
 
 def _still_touching(run: _Run, pair: tuple[int, int], t_s: float) -> bool:

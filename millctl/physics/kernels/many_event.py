@@ -379,10 +379,11 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
 
 
 @njit(cache=True)
-def _overlapping(p, st, a, b, t):  # type: ignore[no-untyped-def]
+def _overlapping(p, st, a, b, t, slack):  # type: ignore[no-untyped-def]
+    """simulate._overlapping: |d|² − (2 r_r)² ≤ ``slack`` (m²)."""
     xa, ya, _, _ = _rel(p, st, a, t)
     xb, yb, _, _ = _rel(p, st, b, t)
-    return (xa - xb) ** 2 + (ya - yb) ** 2 <= 4.0 * p[_RR] * p[_RR]
+    return (xa - xb) ** 2 + (ya - yb) ** 2 - 4.0 * p[_RR] * p[_RR] <= slack
 
 
 @njit(cache=True)
@@ -404,7 +405,7 @@ def _repin(p, st, tr, book, excluded, i, t, t_end, rearm, settled=False):  # typ
     st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
     book[i, _B_BOUNCES], book[i, _B_FROM_WALL] = 0.0, 0.0
     for j in range(int(p[_N])):
-        if j != i and _overlapping(p, st, i, j, t):
+        if j != i and _overlapping(p, st, i, j, t, 0.0):
             excluded[min(i, j), max(i, j)] = 1
     _schedule(p, st, tr, book, i, t, t_end, rearm, settled)
 
@@ -494,6 +495,9 @@ def _run(p, t_end, max_events, threshold_j, tol, impacts, detachments):  # type:
             d = detachments[n_det]
             d[_D_T], d[_D_ROD], d[_D_TH] = t_det, rod_det, math.atan2(st[rod_det, _S_Y], st[rod_det, _S_X])
             n_det += 1
+            for j in range(n):  # a neighbour it leaves touching at rounding's size: excluded until apart
+                if j != rod_det and _overlapping(p, st, rod_det, j, t_det, _NEAR_ZERO * p[_R0] * p[_R0]):
+                    excluded[min(rod_det, j), max(rod_det, j)] = 1
             t = t_det
         else:
             zero_length = partner == WALL and tau == 0.0
