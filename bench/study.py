@@ -12,7 +12,13 @@
   started and warm; efficiency = median serial time / (2 × median pool time). The pool's start-up
   S is timed apart; with c the serial cost of a point, a study of N points keeps ≥ 80 % efficiency
   on w workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`.
-* **offline**: level (c) events per CPU second, one worker.
+* **offline**: level (c), the compiled many-event kernel (:func:`~millctl.physics.simulate.simulate_compiled`)
+  on random scenes of the :data:`OFFLINE` range, four revolutions each: events (impacts and detachments) per
+  CPU second of this thread, against the reference engine's on the first scenes (the same run); and the
+  whole runner's level-(c) study for comparison (its metrics' post-processing included).
+* **agreement_c**: the compiled kernel against the reference engine event for event on random scenes
+  (:func:`millctl.physics.many_agreement.many_event_agreement`, both variants), with every scene that
+  differs listed.
 
 ``--quick`` shrinks every grid.
 """
@@ -27,6 +33,9 @@ from typing import Any
 import numpy as np
 
 from bench.common import bench_config
+from millctl.physics.many_agreement import many_event_agreement
+from millctl.physics.model import MillModel, Scene
+from millctl.physics.simulate import simulate, simulate_compiled
 from millctl.studies import SerialBackend, Study, StudyRunner
 from millctl.studies.backends import Backend, DaskBackend, LocalBackend
 from millctl.studies.engine import evaluate_arrays
@@ -49,7 +58,9 @@ def _study(
         "study": {"name": f"{num} x {num} map", "variant": "corrected", "seed": 1},
         "parameters": parameters,
         "metrics": {
-            "revolutions": revolutions, "cam_phases": FIXED_CAM_PHASES, **({"names": metrics} if metrics else {}),
+            "revolutions": revolutions,
+            "cam_phases": FIXED_CAM_PHASES,
+            **({"names": metrics} if metrics else {}),
         },
         "constraints": {"law": "corrected-best-phase"},
         "objective": {"maximize": metrics[0] if metrics else "dose_rate_j_g_s"},
@@ -153,12 +164,59 @@ def worth_workers_rule(per_point_s: float, startup_s: float, workers: int) -> in
     return int(np.ceil(4.0 * workers * startup_s / per_point_s))
 
 
-def offline(num: int) -> dict[str, Any]:
-    """Level (c) events per CPU second of this thread, one worker."""
+def _offline_scenes(count: int, seed: int = 7) -> list[Scene]:
+    model = MillModel.from_config(bench_config())
+    rng = np.random.default_rng(seed)
+    (lo_r, hi_r), (lo_v, hi_v) = OFFLINE["rotary_rpm"], OFFLINE["vibration_rpm"]
+    rpm = 2.0 * np.pi / 60.0
+    return [
+        Scene(model, rng.uniform(lo_r, hi_r) * rpm, rng.uniform(lo_v, hi_v) * rpm, *rng.uniform(0.0, 2.0 * np.pi, 2))
+        for _ in range(count)
+    ]
+
+
+def _events_per_cpu_s(scenes: list[Scene], run: Callable[[Scene, float], Any], revolutions: float) -> tuple[int, float]:
+    events, cpu = 0, 0.0
+    for scene in scenes:
+        t_end = revolutions * 2.0 * np.pi / scene.omega_r_rad_s
+        start = time.thread_time()
+        result = run(scene, t_end)
+        cpu += time.thread_time() - start
+        events += int(result.impacts.size + result.detachments.size)
+    return events, cpu
+
+
+def offline(scenes: int, reference_scenes: int, num: int) -> dict[str, Any]:
+    """Level (c): the compiled kernel's events per CPU second of this thread, the reference's, the runner's."""
+    chosen = _offline_scenes(scenes)
+    simulate_compiled(chosen[0], 1e-3)  # load the compiled code
+    events, cpu = _events_per_cpu_s(chosen, lambda s, t: simulate_compiled(s, t)[0], 4.0)
+    ref_events, ref_cpu = _events_per_cpu_s(chosen[:reference_scenes], simulate, 4.0)
     study = _study(num, SIM_METRICS, ranges=OFFLINE)
-    cpu, wall, result = _cpu_wall(lambda: StudyRunner(study, bench_config(), "bench").run(SerialBackend()))
-    events = sum(int(r["events"]) for r in result.rows)
-    return {"points": num * num, "events": events, "cpu_s": cpu, "wall_s": wall, "events_per_cpu_s": events / cpu}
+    run_cpu, run_wall, result = _cpu_wall(lambda: StudyRunner(study, bench_config(), "bench").run(SerialBackend()))
+    run_events = sum(int(r["events"]) for r in result.rows)
+    return {
+        "scenes": scenes, "events": events, "cpu_s": cpu, "events_per_cpu_s": events / cpu,
+        "reference_scenes": reference_scenes, "reference_events_per_cpu_s": ref_events / ref_cpu,
+        "speedup": (events / cpu) / (ref_events / ref_cpu),
+        "points": num * num, "runner_events": run_events, "runner_cpu_s": run_cpu, "runner_wall_s": run_wall,
+        "runner_events_per_cpu_s": run_events / run_cpu,
+    }  # fmt: skip
+
+
+def agreement_c(scenes: int, revolutions: float) -> dict[str, Any]:
+    """The compiled level (c) against the reference, event for event, on random scenes of both variants."""
+    model = MillModel.from_config(bench_config())
+    found = many_event_agreement(model, scenes, seed=2026, revolutions=revolutions)
+    differences = [
+        f"{d.variant} {d.omega_r_rpm:.1f}/{d.omega_v_rpm:.1f} rpm, impact {d.event}: reference {d.reference}; "
+        f"compiled {d.compiled}"
+        for d in found.differences
+    ]
+    return {
+        "scenes": found.scenes, "agreeing": found.agreeing, "fraction": found.fraction, "events": found.events,
+        "revolutions": revolutions, "differences": differences,
+    }  # fmt: skip
 
 
 def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[str, Any]:
@@ -169,8 +227,10 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     out["arrays_integrated"] = arrays(30 if quick else 100, 1, cam_phases=0)
     progress("study: the map through the runner")
     out["runner"] = runner(30 if quick else 100)
-    progress("study: level (c), one worker")
-    out["offline"] = offline(3)
+    progress("study: level (c), the compiled many-event kernel, one core")
+    out["offline"] = offline(20 if quick else 200, 3 if quick else 10, 3)
+    progress("study: level (c), compiled against the reference event for event")
+    out["agreement_c"] = agreement_c(60 if quick else 1000, 0.5)
     progress("study: parallel efficiency, alternated serial and two workers (local, Dask)")
     out["parallel"] = parallel(6 if quick else 24, 1 if quick else 3)
     return out
@@ -198,8 +258,10 @@ def report(st: dict[str, Any]) -> list[str]:
         *integrated,
         f"| the same through `StudyRunner` (rows, constraints, store) | {r['points']:,} | {r['cpu_s']:.3g} s "
         f"| {r['wall_s']:.3g} s | {r['points_per_cpu_s']:.3g} |",
-        f"| level (c), {o['points']} points, one worker | {o['points']} | {o['cpu_s']:.3g} s | {o['wall_s']:.3g} s "
-        f"| {o['events_per_cpu_s']:.3g} events/s |",
+        f"| level (c) through `StudyRunner`, {o['points']} points, one worker | {o['points']} "
+        f"| {o['runner_cpu_s']:.3g} s | {o['runner_wall_s']:.3g} s | {o['runner_events_per_cpu_s']:.3g} events/s |",
+        "",
+        *offline_lines(st),
         "",
         f"Parallel efficiency on a level-(c) study of {p['points']} points (serial and two workers alternated, "
         "medians of the wall times, workers started and warm):",
@@ -217,6 +279,26 @@ def report(st: dict[str, Any]) -> list[str]:
     return lines
 
 
+def offline_lines(st: dict[str, Any]) -> list[str]:
+    """Level (c): the compiled kernel's speed and its agreement with the reference."""
+    o = st["offline"]
+    lines = [
+        f"Level (c), the compiled many-event kernel: {o['events_per_cpu_s']:.3g} events per CPU second "
+        f"({o['events']:,} events of {o['scenes']} random scenes of ω_r 120–200 × ω_v 400–800 rpm, 4 revolutions "
+        f"each), {o['speedup']:.0f}× the reference engine's {o['reference_events_per_cpu_s']:.3g} in the same run "
+        f"({o['reference_scenes']} of the scenes).",
+    ]
+    if "agreement_c" in st:
+        a = st["agreement_c"]
+        lines += [
+            "",
+            f"Event for event against the reference: {a['agreeing']} of {a['scenes']} random scenes "
+            f"({a['fraction']:.2%}; {a['events']:,} events, {a['revolutions']} revolution each, both variants).",
+            *[f"- differs: {d}" for d in a["differences"]],
+        ]
+    return lines
+
+
 def rule_text(p: dict[str, Any]) -> str:
     """The printed rule for when a study is too small to gain from workers."""
     c = p["per_point_s"]
@@ -229,4 +311,16 @@ def rule_text(p: dict[str, Any]) -> str:
     )
 
 
-__all__ = ["MAP", "OFFLINE", "arrays", "offline", "parallel", "report", "rule_text", "run", "runner"]
+__all__ = [
+    "MAP",
+    "OFFLINE",
+    "agreement_c",
+    "arrays",
+    "offline",
+    "offline_lines",
+    "parallel",
+    "report",
+    "rule_text",
+    "run",
+    "runner",
+]

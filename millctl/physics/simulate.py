@@ -17,10 +17,15 @@ whichever comes first. Contact rules (a statistics tool, not a contact solver):
   (the rod rolls off its partner instead of resting on it);
 * a rod that comes to rest on another rod — normal speed below
   ``SETTLE_SPEED_FACTOR``·√(g r_r), or more than ``MAX_BOUNCES`` rod–rod impacts in
-  one flight — settles into the pile: it is put back on the wall at its angle.
+  one flight — settles into the pile: it is put back on the wall at its angle; where
+  the wall cannot hold it there (N ≤ 0) it rides the pile until N has risen above zero
+  and detaches at the next falling zero (the zero-length rule's re-arming).
 
 Cost: roughly 1 ms of CPython per event for Set A (scales with n for the pair
-scans), i.e. seconds for thousands of events.
+scans), i.e. seconds for thousands of events. This is the reference (the oracle);
+:func:`simulate_compiled` runs the same algorithm compiled
+(:mod:`millctl.physics.kernels.many_event`), the engine the studies use, and agrees with it
+event for event (tests/unit/physics/test_many_event.py, ``python -m bench --only study``).
 """
 
 from __future__ import annotations
@@ -63,6 +68,8 @@ DETACHMENT_DTYPE = np.dtype([("time_s", "f8"), ("rod", "i4"), ("theta_rad", "f8"
 
 SETTLE_SPEED_FACTOR = 0.01
 MAX_BOUNCES = 20
+RELEASE_GAP_RTOL = 1e-9
+"""An excluded pair is released when its separation |d|² − (2 r_r)² exceeds this × r0² (the search's near-zero)."""
 
 
 @dataclass
@@ -92,8 +99,42 @@ class SimulationResult:
     t_end_s: float
 
 
-def _repin(run: _Run, rod: int, t_s: float, rearm: bool) -> None:
-    """Put a rod back on the wall at its current angle; overlapping neighbours are excluded until apart."""
+def _alpha_rad(scene: Scene, t_s: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.asarray((scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi), dtype=np.float64)
+
+
+def simulate_compiled(
+    scene: Scene, t_end_s: float, max_events: int = 100_000, tol_s: float = 0.0, threshold_j: float = 0.0
+) -> tuple[SimulationResult, int]:
+    """The same run as :func:`simulate`, compiled (:func:`~millctl.physics.kernels.many_event.many_events`).
+
+    Returns the same records, and how many of the impacts reach ``threshold_j`` (J; the rest are micro-hops).
+    """
+    if not (math.isfinite(t_end_s) and t_end_s >= 0.0):
+        raise PhysicsInputError(f"t_end_s = {t_end_s} must be a finite time ≥ 0")
+    from millctl.physics.kernels import scene_row
+    from millctl.physics.kernels.many_event import many_events
+
+    rows, detached, _ = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s)
+    impacts = np.zeros(len(rows), dtype=IMPACT_DTYPE)
+    columns = ("time_s", "rod", "partner", "x_m", "y_m", "theta_rad", "normal_velocity_m_s",
+               "tangential_velocity_m_s", "speed_abs_m_s", "energy_j", "flight_time_s")  # fmt: skip
+    for k, name in enumerate(columns):
+        impacts[name] = rows[:, k]
+    impacts["alpha_rad"] = _alpha_rad(scene, rows[:, 0])
+    detachments = np.zeros(len(detached), dtype=DETACHMENT_DTYPE)
+    detachments["time_s"], detachments["rod"], detachments["theta_rad"] = detached[:, 0], detached[:, 1], detached[:, 2]
+    detachments["alpha_rad"] = _alpha_rad(scene, detached[:, 0])
+    return SimulationResult(impacts, detachments, t_end_s), int(np.count_nonzero(rows[:, 11]))
+
+
+def _repin(run: _Run, rod: int, t_s: float, rearm: bool, settled: bool = False) -> None:
+    """Put a rod back on the wall at its current angle; overlapping neighbours are excluded until apart.
+
+    ``settled``: the rod came to rest on another rod; where the wall cannot hold it (N ≤ 0 at its
+    angle) it rides the pile until N has risen above zero again, instead of falling back onto the same
+    rod at once (a Zeno chain of ever shorter hops that ended only at rounding, 1e-15 s apart).
+    """
     x, y, _, _ = run.states[rod].rel(run.scene, t_s)
     run.states[rod] = WallState(t_s, math.atan2(y, x))
     run.n_d.pop(rod, None)
@@ -101,14 +142,16 @@ def _repin(run: _Run, rod: int, t_s: float, rearm: bool) -> None:
     for j in range(len(run.states)):
         if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s):
             run.excluded.add((min(rod, j), max(rod, j)))
-    _schedule(run, rod, t_s, rearm)
+    _schedule(run, rod, t_s, rearm, settled)
 
 
-def _schedule(run: _Run, rod: int, t_s: float, rearm: bool = False) -> None:
+def _schedule(run: _Run, rod: int, t_s: float, rearm: bool = False, settled: bool = False) -> None:
     s = run.states[rod]
     assert isinstance(s, WallState)
     theta_at_zero = s.theta0_rad - run.scene.omega_r_rad_s * s.t0_s
     det = find_detachment(run.scene, theta_at_zero, t_s, run.t_end_s, rearm=rearm)
+    if settled and det.detached and det.at_start:
+        det = find_detachment(run.scene, theta_at_zero, t_s, run.t_end_s, rearm=True)
     run.next_detach[rod] = det.time_s if det.detached else math.inf
     if det.detached and det.at_start:
         run.unsupported.add(rod)
@@ -130,6 +173,10 @@ def _depart(run: _Run, rod: int, t_s: float) -> None:
     run.unsupported.discard(rod)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi)
     run.detachments.append((t_s, rod, theta, alpha))
+    # a neighbour it leaves touching (a separation of rounding size) is not a contact: excluded until apart
+    for j in range(len(run.states)):
+        if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s, RELEASE_GAP_RTOL * scene.model.r0_m**2):
+            run.excluded.add((min(rod, j), max(rod, j)))
 
 
 def _record(run: _Run, c: Contact) -> None:
@@ -190,7 +237,7 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         run.bounces[contact.rod] = run.bounces.get(contact.rod, 0) + 1
         settle = SETTLE_SPEED_FACTOR * math.sqrt(scene.model.g_m_s2 * scene.model.rod_radius_m)
         if contact.normal_velocity_m_s < settle or run.bounces[contact.rod] > MAX_BOUNCES:
-            _repin(run, contact.rod, contact.time_s, rearm=False)
+            _repin(run, contact.rod, contact.time_s, rearm=False, settled=True)
         else:
             _bounce(run, contact)
     return contact.time_s
@@ -221,8 +268,10 @@ def simulate(
     )
 
 
-def _overlapping(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
+def _overlapping(run: _Run, pair: tuple[int, int], t_s: float, slack_m2: float = 0.0) -> bool:
     """Centres no further apart than the contact distance (a re-pinned rod resting on a neighbour).
+
+    ``slack_m2``: a separation |d|² − (2 r_r)² up to this still counts (a departing rod: rounding's size).
 
     Only such pairs are excluded when a rod is put back on the wall: two rods that merely
     ride side by side on the wall are neither apart-and-separating nor touching, and must
@@ -230,18 +279,28 @@ def _overlapping(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
     """
     xa, ya, _, _ = run.states[pair[0]].rel(run.scene, t_s)
     xb, yb, _, _ = run.states[pair[1]].rel(run.scene, t_s)
-    return (xa - xb) ** 2 + (ya - yb) ** 2 <= run.scene.model.contact_distance_m**2
+    return (xa - xb) ** 2 + (ya - yb) ** 2 - run.scene.model.contact_distance_m**2 <= slack_m2
 
 
 def _still_touching(run: _Run, pair: tuple[int, int], t_s: float) -> bool:
-    """A pair stays excluded until its centres are apart by more than the contact distance and separating."""
+    """A pair stays excluded until its centres are apart by more than the contact distance and separating.
+
+    Apart means beyond rounding: the separation |d|² − (2 r_r)² above :data:`RELEASE_GAP_RTOL` · r0², the
+    scale below which the contact search treats a pair as touching. Released at the instant of its bounce
+    (apart by an ulp), a pair was found touching again a few 1e-14 s later at v_n ~ 1e-13 m/s, and the rod
+    settled where it should have flown on (tests/unit/physics/test_many_event.py). Separating likewise
+    means beyond rounding: the cosine between d and the relative velocity above RELEASE_GAP_RTOL (two
+    rods held on the wall move at right angles to their offset, a dot product of ±1 ulp whose sign
+    decided whether the pair was tested again).
+    """
     scene = run.scene
     xa, ya, vxa, vya = run.states[pair[0]].rel(scene, t_s)
     xb, yb, vxb, vyb = run.states[pair[1]].rel(scene, t_s)
     dx, dy = xa - xb, ya - yb
-    apart = dx * dx + dy * dy > scene.model.contact_distance_m**2
-    separating = dx * (vxa - vxb) + dy * (vya - vyb) > 0.0
+    apart = dx * dx + dy * dy - scene.model.contact_distance_m**2 > RELEASE_GAP_RTOL * scene.model.r0_m**2
+    dvx, dvy = vxa - vxb, vya - vyb
+    separating = dx * dvx + dy * dvy > RELEASE_GAP_RTOL * math.hypot(dx, dy) * math.hypot(dvx, dvy)
     return not (apart and separating)
 
 
-__all__ = ["DETACHMENT_DTYPE", "IMPACT_DTYPE", "SimulationResult", "simulate"]
+__all__ = ["DETACHMENT_DTYPE", "IMPACT_DTYPE", "SimulationResult", "simulate", "simulate_compiled"]

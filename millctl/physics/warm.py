@@ -9,8 +9,9 @@ the hil nodes and the benchmarks load what is compiled. With the cache current i
 Each call below is the first call of a public entry point with the argument types its callers use:
 the batch events (:func:`.batch.first_impacts`, one rod and all), the per-scene methods the CLI and
 the benchmark compare (:func:`.methods.first_impact`, ``exact`` with and without a tolerance, and
-``legacy-compiled``), the detachment times (:func:`.kernels.detachment_times`), and the node's
-revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels).
+``legacy-compiled``), the detachment times (:func:`.kernels.detachment_times`), the node's
+revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels), and level (c)'s
+many-event kernel (:func:`.simulate.simulate_compiled`, the studies' multi-rod simulation).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from millctl.physics import kernels
 from millctl.physics.batch import SceneBatch, first_impacts
 from millctl.physics.methods import first_impact
 from millctl.physics.model import MillModel, Scene
+from millctl.physics.simulate import simulate_compiled
 from millctl.physics.telemetry import revolution_summary
 
 OMEGA_R_RAD_S = 10.0
@@ -43,6 +45,7 @@ def warm() -> None:
     first_impact(scene, "legacy-compiled", dt=1e-3)
     kernels.detachment_times(kernels.scene_row(scene), 5.0)
     revolution_summary(model, OMEGA_R_RAD_S, OMEGA_V_RAD_S)
+    simulate_compiled(scene, 0.5, threshold_j=1e-10)
 
 
 def main() -> int:

@@ -199,7 +199,11 @@ def _study_results() -> dict[str, object]:
         "arrays_integrated": {"points": 10_000, "cam_phases": 0, "phases_per_point": 66.4, "cpu_s": 5.0,
                               "wall_s": 5.5, "points_per_cpu_s": 2e3},
         "runner": {"points": 10_000, "cpu_s": 0.5, "wall_s": 1.0, "points_per_cpu_s": 2e4},
-        "offline": {"points": 9, "events": 300, "cpu_s": 1.0, "wall_s": 2.0, "events_per_cpu_s": 300.0},
+        "offline": {"scenes": 200, "events": 300, "cpu_s": 1.0, "events_per_cpu_s": 300.0, "reference_scenes": 10,
+                    "reference_events_per_cpu_s": 3.0, "speedup": 100.0, "points": 9, "runner_events": 90,
+                    "runner_cpu_s": 0.5, "runner_wall_s": 0.6, "runner_events_per_cpu_s": 180.0},
+        "agreement_c": {"scenes": 1000, "agreeing": 999, "fraction": 0.999, "events": 50_000, "revolutions": 0.5,
+                        "differences": ["paper 20.7/618.6 rpm, impact 238: reference rod 1; compiled rod 3"]},
         "parallel": parallel,
     }
 
@@ -215,6 +219,10 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     assert "| 2-worker local Dask cluster | 7 s | 5 s | 1.40× | 70% | 3 s | 480 |" in text
     assert "N·c ≥ 4·w·S" in text and "two workers pay from 240 / 480 level-(c) points" in text
     assert study.worth_workers_rule(0.05, 1.5, 2) == 240  # 4 · 2 · 1.5 s / 0.05 s
+    assert "| level (c) through `StudyRunner`, 9 points, one worker | 9 | 0.5 s | 0.6 s | 180 events/s |" in text
+    assert "compiled many-event kernel: 300 events per CPU second" in text and "100× the reference" in text
+    assert "999 of 1000 random scenes (99.90%" in text
+    assert "- differs: paper 20.7/618.6 rpm, impact 238" in text
     assert "study" in cli.build_parser().format_help()
 
 
@@ -237,6 +245,7 @@ def test_every_issue_40_target_is_printed_with_measured_target_and_met() -> None
     )
     assert "| parallel efficiency, 2-worker local Dask cluster (share) | 0.7 | ≥ 0.8 | **no** |" in text
     assert "| level (c) simulation (events/s/core) | 300 | ≥ 1e+05 | **no** |" in text
+    assert "| level (c) agrees event for event (share of scenes) | 0.999 | ≥ 0.999 | yes |" in text
     assert "compiled 3.50; study 4.25" in text
 
 

@@ -1,0 +1,52 @@
+"""Array layouts of the compiled many-event kernel (:mod:`.many_event`): rod bookkeeping, impact and detachment rows.
+
+A rod's motion is a row of the shared state columns (``_S_*`` in :mod:`.layout`: flying flag, t0,
+pinned angle, flight start and velocity, n_d, cam phasor). What the event loop of level (c) keeps
+beside it, one row a rod, is :data:`ROD_BOOK`; what it writes, one row an event, is :data:`IMPACT`
+and :data:`DETACHMENT` (the columns of :data:`millctl.physics.simulate.IMPACT_DTYPE` and
+``DETACHMENT_DTYPE`` that the kernel fills; the cam phase α is added from the time by the caller).
+"""
+
+from __future__ import annotations
+
+ROD_BOOK = ("next_detach_s", "unsupported", "from_wall", "bounces")
+"""Columns of a rod's bookkeeping row: its next detachment (s; inf: none before the end), 1.0 when that
+detachment is at the start of its search with N < 0 (not a falling zero), 1.0 while its flight began on
+the wall (the wall gap has the departure's triple root), and its rod–rod impacts in the current flight."""
+
+(_B_DET, _B_UNSUP, _B_FROM_WALL, _B_BOUNCES) = range(len(ROD_BOOK))
+
+IMPACT = (
+    "time_s",
+    "rod",
+    "partner",
+    "x_m",
+    "y_m",
+    "theta_rad",
+    "normal_velocity_m_s",
+    "tangential_velocity_m_s",
+    "speed_abs_m_s",
+    "energy_j",
+    "flight_time_s",
+    "counted",
+)
+"""Columns of an impact row (lab frame, SI); ``counted`` 1.0 when the energy reaches the impact threshold
+(below it the landing is a micro-hop, :func:`millctl.studies.loads.impact_threshold_j`)."""
+
+(_I_T, _I_ROD, _I_PARTNER, _I_X, _I_Y, _I_TH, _I_VN, _I_VT, _I_SPEED, _I_ENERGY, _I_FLIGHT, _I_COUNTED) = range(
+    len(IMPACT)
+)
+
+DETACHMENT = ("time_s", "rod", "theta_rad")
+"""Columns of a detachment row."""
+
+(_D_T, _D_ROD, _D_TH) = range(len(DETACHMENT))
+
+SETTLE_SPEED_FACTOR = 0.01
+"""A rod–rod impact slower than this × √(g r_r) settles the rod into the pile (as :mod:`..simulate`)."""
+MAX_BOUNCES = 20
+"""More rod–rod impacts than this in one flight settle the rod too."""
+SCAN_SAMPLES = 32
+"""Samples a chunk of the bracketing scan (as :mod:`millctl.physics.events`)."""
+
+__all__ = ["DETACHMENT", "IMPACT", "MAX_BOUNCES", "ROD_BOOK", "SCAN_SAMPLES", "SETTLE_SPEED_FACTOR"]
