@@ -8,13 +8,22 @@ is read) and its size, and then reads at most the bound plus one byte, so a
 file that grows while it is read is refused too. ``/dev/zero``, a FIFO, a
 directory or a huge file is refused at once, in bounded memory, with the
 path, what it is, and the bound (docs/safety.md#files-and-nesting).
+
+A TOML file (:func:`read_toml`, :func:`parse_toml`) is refused as well when its
+tables and arrays nest deeper than :data:`MAX_TOML_DEPTH`. Only the standard
+library: the CLI checks a named file here before it imports anything heavy
+(millctl/cli/precheck.py), and the loaders use the same functions.
 """
 
 from __future__ import annotations
 
 import os
 import stat
+import tomllib
 from pathlib import Path
+from typing import Any
+
+from millctl.errors import ConfigError, InvalidFileError
 
 MAX_INPUT_BYTES = 4 << 20
 """The bound on a file a user names (bytes): 4 MiB, far above any configuration, recipe or study (a few kB)."""
@@ -88,4 +97,65 @@ def read_input_text(path: str | os.PathLike[str], max_bytes: int = MAX_INPUT_BYT
         raise FileRefused(f"{Path(path)}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
 
 
-__all__ = ["MAX_INPUT_BYTES", "FileRefused", "read_input_file", "read_input_text"]
+MAX_TOML_DEPTH = 32
+"""Tables and arrays nest at most this deep in a configuration, recipe or study (a millctl file needs 3)."""
+
+
+def read_toml(path: Path, error: type[InvalidFileError] = ConfigError) -> tuple[dict[str, Any], bytes]:
+    """Read a TOML file (a regular file under MAX_INPUT_BYTES); a bad file or bad syntax raises ``error`` naming it."""
+    try:
+        raw = read_input_file(path)
+    except FileRefused as exc:
+        raise error(str(path), [str(exc)]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(str(path), [f"{path}: not UTF-8 text ({exc.reason})"]) from None
+    return parse_toml(text, str(path), error), raw
+
+
+def parse_toml(text: str, source: str, error: type[InvalidFileError] = ConfigError) -> dict[str, Any]:
+    """Parse TOML text; bad syntax, or nesting deeper than MAX_TOML_DEPTH, raises ``error`` naming ``source``."""
+    too_deep = (f"{source}: arrays or inline tables nested too deeply: the bound is {MAX_TOML_DEPTH} levels "
+                "(a millctl file needs at most 3)")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(source, [f"{source}: TOML syntax error: {exc}"]) from None
+    except RecursionError:  # deeper than the parser itself can go: far past the bound
+        raise error(source, [f"{too_deep}; this one is nested deeper than the TOML parser can go"]) from None
+    depth = nesting_depth(data)
+    if depth > MAX_TOML_DEPTH:
+        raise error(source, [f"{too_deep}; this one is nested more than {MAX_TOML_DEPTH} levels deep"])
+    return data
+
+
+def nesting_depth(data: object) -> int:
+    """How many tables and arrays deep ``data`` goes (a scalar: 0), counted without recursion.
+
+    The count stops at MAX_TOML_DEPTH + 1: deeper is too deep, however deep.
+    """
+    deepest = 0
+    pending: list[tuple[object, int]] = [(data, 0)]
+    while pending:
+        item, depth = pending.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if children is None:
+            continue
+        deepest = max(deepest, depth + 1)
+        if deepest > MAX_TOML_DEPTH:
+            return deepest
+        pending.extend((child, depth + 1) for child in children)
+    return deepest
+
+
+__all__ = [
+    "MAX_INPUT_BYTES",
+    "MAX_TOML_DEPTH",
+    "FileRefused",
+    "nesting_depth",
+    "parse_toml",
+    "read_input_file",
+    "read_input_text",
+    "read_toml",
+]

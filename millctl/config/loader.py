@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -19,15 +18,13 @@ from pydantic import BaseModel, ValidationError
 
 from millctl.config.models import MillConfig
 from millctl.errors import ConfigError, InvalidFileError
-from millctl.files import FileRefused, read_input_file
+from millctl.files import MAX_TOML_DEPTH, nesting_depth, parse_toml, read_toml
 
 ENV_VAR = "MILLCTL_CONFIG"
 LOCAL_PATH = Path("config") / "mill.toml"
 
 M = TypeVar("M", bound=BaseModel)
 
-MAX_TOML_DEPTH = 32
-"""Tables and arrays nest at most this deep in a configuration, recipe or study (a millctl file needs 3)."""
 
 _BOUND_WORDS = {
     "gt": "> {}",
@@ -89,54 +86,6 @@ def format_validation_errors(source: str, error: ValidationError) -> list[str]:
         else:
             lines.append(f"{source}: {field} = {shown}: {message}{bound}")
     return lines
-
-
-def read_toml(path: Path, error: type[InvalidFileError] = ConfigError) -> tuple[dict[str, Any], bytes]:
-    """Read a TOML file (a regular file under MAX_INPUT_BYTES); a bad file or bad syntax raises ``error`` naming it."""
-    try:
-        raw = read_input_file(path)
-    except FileRefused as exc:
-        raise error(str(path), [str(exc)]) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise error(str(path), [f"{path}: not UTF-8 text ({exc.reason})"]) from None
-    return parse_toml(text, str(path), error), raw
-
-
-def parse_toml(text: str, source: str, error: type[InvalidFileError] = ConfigError) -> dict[str, Any]:
-    """Parse TOML text; bad syntax, or nesting deeper than MAX_TOML_DEPTH, raises ``error`` naming ``source``."""
-    too_deep = (f"{source}: arrays or inline tables nested too deeply: the bound is {MAX_TOML_DEPTH} levels "
-                "(a millctl file needs at most 3)")
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(source, [f"{source}: TOML syntax error: {exc}"]) from None
-    except RecursionError:  # deeper than the parser itself can go: far past the bound
-        raise error(source, [f"{too_deep}; this one is nested deeper than the TOML parser can go"]) from None
-    depth = nesting_depth(data)
-    if depth > MAX_TOML_DEPTH:
-        raise error(source, [f"{too_deep}; this one is nested more than {MAX_TOML_DEPTH} levels deep"])
-    return data
-
-
-def nesting_depth(data: object) -> int:
-    """How many tables and arrays deep ``data`` goes (a scalar: 0), counted without recursion.
-
-    The count stops at MAX_TOML_DEPTH + 1: deeper is too deep, however deep.
-    """
-    deepest = 0
-    pending: list[tuple[object, int]] = [(data, 0)]
-    while pending:
-        item, depth = pending.pop()
-        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
-        if children is None:
-            continue
-        deepest = max(deepest, depth + 1)
-        if deepest > MAX_TOML_DEPTH:
-            return deepest
-        pending.extend((child, depth + 1) for child in children)
-    return deepest
 
 
 def validate_as(
