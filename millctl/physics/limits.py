@@ -26,6 +26,7 @@ printed order mg − (k − mω_v²) r_d loses digits near its zero.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,26 +146,52 @@ def omega_r_max(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> Floa
     return LAWS[law](p, omega_v_rad_s)
 
 
-def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> float:
-    """ω_r,max (rad/s) of one ω_v in plain ``math``: the interlock's scalar path (well under a microsecond).
+def scalar_limit(law: LimitLaw, p: LimitParams) -> Callable[[float], float]:
+    """ω_r,max (rad/s) as a function of one ω_v (rad/s), in plain ``math``: the interlock's scalar path.
 
-    The same formulas, in the same order of operations, as the vectorised laws above,
-    so that every verdict is bitwise the same (``tests/unit/test_limits.py``).
+    The law is chosen and its constant terms (k·r_d, 2·m·r0, mg + k·r_d, the
+    cam's strokes per revolution) are formed once, here; the function then
+    costs a few multiplications and one square root (a fraction of a
+    microsecond, docs/benchmarks.md). The formulas and their order of
+    operations are those of the vectorised laws above, so every verdict is
+    bitwise the same (``tests/unit/test_limits.py``).
     """
-    w = STROKES_PER_REVOLUTION[p.cam] * omega_v_rad_s  # the lift speed h·ω_v, as lift_speed_array forms it
-    w2 = w * w
-    m, k, r_d, g = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.g_m_s2
-    if law is LimitLaw.PAPER_EQ9:
-        numerator = m * (g + r_d * w2) - k * r_d
-        return math.sqrt((numerator if numerator > 0.0 else 0.0) / (2.0 * m * p.r0_m))
-    if law is LimitLaw.PAPER_EVERY_CYCLE:
-        numerator = m * (g + r_d * w2) - k * r_d if k >= m * w2 else (m * g + k * r_d) - m * r_d * w2
-        denominator = 2.0 * m * p.r0_m
-    else:
-        gamma = r_d * w2 / g
-        numerator = g * (1.0 - gamma) if law is LimitLaw.CORRECTED_EVERY_PHASE else g * (1.0 + gamma)
-        denominator = p.r0_m
-    return math.sqrt((numerator if numerator > 0.0 else 0.0) / denominator)
+    h = STROKES_PER_REVOLUTION[p.cam]  # the lift speed h·ω_v, as lift_speed_array forms it
+    m, k, r_d, g, r0 = p.rod_mass_kg, p.spring_n_per_m, p.eccentricity_m, p.g_m_s2, p.r0_m
+    sqrt = math.sqrt
+    if law is LimitLaw.PAPER_EQ9:  # eq. 9: √((m(g + r_d w²) − k r_d) / (2 m r0))
+        k_r_d, two_m_r0 = k * r_d, 2.0 * m * r0
+
+        def paper_eq9(omega_v_rad_s: float) -> float:
+            w = h * omega_v_rad_s
+            numerator = m * (g + r_d * (w * w)) - k_r_d
+            return sqrt((numerator if numerator > 0.0 else 0.0) / two_m_r0)
+
+        return paper_eq9
+    if law is LimitLaw.PAPER_EVERY_CYCLE:  # eq. 8a at the true worst phase: mg − |k − m w²| r_d
+        k_r_d, m_g_k_r_d, two_m_r0 = k * r_d, m * g + k * r_d, 2.0 * m * r0
+
+        def paper_every_cycle(omega_v_rad_s: float) -> float:
+            w = h * omega_v_rad_s
+            w2 = w * w
+            numerator = m * (g + r_d * w2) - k_r_d if k >= m * w2 else m_g_k_r_d - m * r_d * w2
+            return sqrt((numerator if numerator > 0.0 else 0.0) / two_m_r0)
+
+        return paper_every_cycle
+    worst = law is LimitLaw.CORRECTED_EVERY_PHASE  # g_eff = g(1 ∓ Γ), Γ = r_d w² / g
+
+    def corrected(omega_v_rad_s: float) -> float:
+        w = h * omega_v_rad_s
+        gamma = r_d * (w * w) / g
+        numerator = g * (1.0 - gamma) if worst else g * (1.0 + gamma)
+        return sqrt((numerator if numerator > 0.0 else 0.0) / r0)
+
+    return corrected
+
+
+def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> float:
+    """ω_r,max (rad/s) of one ω_v in plain ``math``: :func:`scalar_limit` for one call (keep that for many)."""
+    return scalar_limit(law, p)(omega_v_rad_s)
 
 
 def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> NDArray[np.bool_]:
@@ -276,6 +303,7 @@ __all__ = [
     "omega_r_max_paper_every_cycle",
     "omega_r_max_scalar",
     "regime_flags",
+    "scalar_limit",
     "sin_alpha_bound_consistent",
     "sin_alpha_bound_printed_eq8b",
     "switch_omega_v_rad_s",

@@ -10,14 +10,16 @@ node rejects, all through :meth:`Envelope.check` (docs/safety.md).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from millctl.config.models import LimitLaw, MillConfig
 from millctl.errors import InterlockError
-from millctl.physics.limits import LimitParams, is_every_cycle_bound, omega_r_max, omega_r_max_scalar
+from millctl.physics.limits import LimitParams, is_every_cycle_bound, omega_r_max, scalar_limit
 from millctl.units import RPM_PER_RAD_S, rad_s_to_rpm, rpm_to_rad_s
 
 DOC_REF = "docs/safety.md#setpoint-interlock"
@@ -99,11 +101,22 @@ class Envelope:
     _law_text: str = field(init=False, repr=False)
     _keep: float = field(init=False, repr=False)
     """1 − margin, formed once."""
+    _law_rad_s: Callable[[float], float] = field(init=False, repr=False, compare=False)
+    """The configured law's ω_r,max(ω_v) in rad/s (:func:`~millctl.physics.limits.scalar_limit`), formed once."""
 
     def __post_init__(self) -> None:
         law_text = f"{self.law.value} ({_LAW_EQUATION[self.law]}), margin {self.margin:.0%}"
         object.__setattr__(self, "_law_text", law_text)
         object.__setattr__(self, "_keep", 1.0 - self.margin)
+        object.__setattr__(self, "_law_rad_s", scalar_limit(self.law, self.params))
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the law's function (a closure), which :meth:`__setstate__` forms again."""
+        return {k: v for k, v in self.__dict__.items() if k != "_law_rad_s"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        object.__setattr__(self, "_law_rad_s", scalar_limit(self.law, self.params))
 
     @classmethod
     def from_config(cls, config: MillConfig, law: LimitLaw | None = None) -> Envelope:
@@ -143,7 +156,7 @@ class Envelope:
 
     def limit_rpm(self, omega_v_rpm: float) -> float:
         """Scalar :meth:`omega_r_limit_rpm` in plain ``math`` (rpm): margin and absolute limit applied."""
-        law_rpm = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
+        law_rpm = self._law_rad_s(omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
         return min(self._keep * law_rpm, self.rotary_max_rpm)
 
     def allows(self, omega_r_rpm: float, omega_v_rpm: float, tolerance_rpm: float = 0.0) -> bool:
@@ -157,7 +170,7 @@ class Envelope:
             return False
         if omega_r_rpm == 0.0:
             return True
-        law_rpm = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
+        law_rpm = self._law_rad_s(omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
         return omega_r_rpm <= min(self._keep * law_rpm, self.rotary_max_rpm) + tolerance_rpm
 
     def allows_measured(self, omega_r_rpm: float, omega_v_rpm: float) -> bool:
@@ -198,7 +211,7 @@ class Envelope:
                     f"{self.vibration_max_rpm:.1f} rpm (drives.vibration.max_speed_rpm)",
                 )
             )
-        law_limit = omega_r_max_scalar(self.law, self.params, omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
+        law_limit = self._law_rad_s(omega_v_rpm / RPM_PER_RAD_S) * RPM_PER_RAD_S
         limit = min((1.0 - self.margin) * law_limit, self.rotary_max_rpm)
         if omega_r_rpm != 0.0 and omega_r_rpm > limit + tolerance_rpm:
             digits = 1 if f"{omega_r_rpm:.1f}" != f"{limit:.1f}" else 3  # show the difference
