@@ -14,7 +14,12 @@ where it was. Each drive must then stay under the *stop ceiling*: the
 controller's own plan of that stop, from the highest of the speeds commanded
 over the lag window and the last measured ones, read one lag window late.
 Once that plan has ended, the ceiling is standstill. A drive above it is not
-stopping: the controller escalates to an E-stop.
+stopping: the controller escalates to an E-stop. The node reports the stop
+complete once its drives are within the measurement tolerance of rest, while
+they still settle; so the ceiling keeps bounding them (beside what is
+commanded afterwards) until it reaches standstill itself, rather than the
+band dropping to standstill ± tolerance under a drive at 2.9 rpm whose
+noisy sensor reads 3.6 (docs/safety.md#believe-only-what-was-commanded).
 
 Above the band, ``interlock.debounce_samples`` consecutive samples count, as
 for the envelope; at rest when commanded to turn, a whole lag window
@@ -44,6 +49,8 @@ class SpeedExpectation:
         self.stop: Trajectory | None = None
         """The stop the drives must stay under, while one is under way."""
         self._stop_started_s = 0.0
+        self._settling: tuple[Trajectory, float] | None = None
+        """A stop the node reported done, and when it began: its ceiling bounds the drives until standstill."""
         self.outside_in_a_row = 0
         self.below_since_s: float | None = None
 
@@ -72,11 +79,29 @@ class SpeedExpectation:
             start = SpeedPoint(max(r_high, m_r, 0.0), max(v_high, m_v, 0.0))
             self.stop = self.planner.plan_stop(start)
             self._stop_started_s = now_s
+            self._settling = None
         return self.stop
 
     def end_stop(self) -> None:
-        """The stop is over (the node reported it done, or a reset completed)."""
+        """The stop is over (the node reported it done, or a reset completed).
+
+        Its ceiling stays an upper bound on the drives, beside what is
+        commanded next, until the ceiling itself reaches standstill.
+        """
+        if self.stop is not None:
+            self._settling = (self.stop, self._stop_started_s)
         self.stop = None
+
+    def _settling_ceiling(self, now_s: float) -> SpeedPoint | None:
+        """The ended stop's ceiling at ``now_s`` while it is above standstill (None after, or with no stop)."""
+        if self._settling is None:
+            return None
+        stop, started_s = self._settling
+        elapsed_s = now_s - started_s - self.window_s
+        if elapsed_s >= stop.duration_s:
+            self._settling = None
+            return None
+        return stop.at(max(elapsed_s, 0.0))
 
     @property
     def stop_bound_s(self) -> float:
@@ -95,6 +120,9 @@ class SpeedExpectation:
             ceiling = self.stop.at(max(now_s - self._stop_started_s - self.window_s, 0.0))
             return (-tol, ceiling.omega_r_rpm + tol), (-tol, ceiling.omega_v_rpm + tol)
         r_low, r_high, v_low, v_high = self._span()
+        settling = self._settling_ceiling(now_s)
+        if settling is not None:
+            r_high, v_high = max(r_high, settling.omega_r_rpm), max(v_high, settling.omega_v_rpm)
         return (r_low - tol, r_high + tol), (v_low - tol, v_high + tol)
 
     def check(self, now_s: float, omega_r_rpm: float, omega_v_rpm: float) -> str | None:
@@ -122,7 +150,9 @@ class SpeedExpectation:
             judged = f"below it for {now_s - self.below_since_s:.1f} s: the node did not take its setpoints"
         else:
             return None
-        what = "the stop ceiling" if self.stop is not None else "what was commanded"
+        what = "what was commanded" if self._settling is None else "what was commanded or the ended stop's ceiling"
+        if self.stop is not None:
+            what = "the stop ceiling"
         return (
             f"measured ω_r = {omega_r_rpm:.1f} rpm, ω_v = {omega_v_rpm:.1f} rpm is not {what} "
             f"(ω_r {max(r_low, 0.0):.1f}…{r_high:.1f} rpm, ω_v {max(v_low, 0.0):.1f}…{v_high:.1f} rpm over the "

@@ -21,6 +21,7 @@ import fcntl
 import json
 import os
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,17 @@ RUNS_DIR = "runs"
 
 RUN_ID_PATTERN = r"^[0-9]{8}T[0-9]{6}Z-[0-9a-f]{6}$"
 """A run id: the UTC start time and six hex digits (``20260101T120000Z-1a2b3c``)."""
+
+
+def clock_stamp() -> str:
+    """A sortable UTC timestamp for run ids."""
+    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+
+
+def new_run_id() -> str:
+    """A new run id: the UTC start time and six random hex digits (RUN_ID_PATTERN)."""
+    return f"{clock_stamp()}-{uuid.uuid4().hex[:6]}"
+
 
 LOCK_TRIES = 20
 LOCK_RETRY_S = 0.01
@@ -323,7 +335,9 @@ __all__ = [
     "RunLock",
     "RunNotFound",
     "RunNotResumable",
+    "clock_stamp",
     "is_live",
+    "new_run_id",
     "read_history",
     "record_path",
     "repair_tail",

@@ -24,23 +24,20 @@ from __future__ import annotations
 
 import logging
 import time
-import uuid
 from pathlib import Path
 from typing import Any
 
 from millctl import __version__
 from millctl.api import RunState
 from millctl.clock import Clock
-from millctl.config.models import ModelVariant
 from millctl.controller import CommandRefused, Controller, ControllerState
 from millctl.errors import InterlockError
-from millctl.physics.dose import whole_mill_rate_hz
-from millctl.protocol import PhysicsTelemetry
-from millctl.recipes.history import RUNS_DIR, RunLock
+from millctl.recipes.history import RUNS_DIR, RunLock, new_run_id
 from millctl.recipes.plan import RecipePlan, StepPlan
 from millctl.recipes.resume import Restore, ResumePoint
 from millctl.recipes.samples import DEFAULT_SAMPLE_S, RunSampler
 from millctl.recipes.schema import HoldStep, LoadedRecipe, PauseStep, RampStep, Step, Tolerances, WaitFurnaceStep
+from millctl.recipes.step_dose import SETTLE_TIMEOUT_S, StepDose
 from millctl.records import RecordQueue, RecordWriter
 
 log = logging.getLogger(__name__)
@@ -49,9 +46,6 @@ S = ControllerState
 
 ARM_TIMEOUT_S = 5.0
 """How long the runner waits for the node to arm before the run fails (s)."""
-
-SETTLE_TIMEOUT_S = 30.0
-"""How long after its planned end a ramp may take to settle within tolerance (s)."""
 
 STANDSTILL_RPM = 1.0
 
@@ -111,10 +105,9 @@ class RecipeRunner:
         self._pause_at_boundary = False
         self._arm_sent = False
         self._finish_as = RunState.DONE
-        self._dose_j_g = 0.0
-        """Specific energy dose of the current step so far (J/g), from the node's physics telemetry."""
-        self._dose_clock_s = clock.now()
-        self.sampler = RunSampler(sample_s, self._dose_rate_j_g_s, clock.now() - self._t_offset_s)
+        self.dose = StepDose(controller, plan.powder_charge_g, clock.now())
+        """The current step's dose (J/g), from the node's physics telemetry."""
+        self.sampler = RunSampler(sample_s, self.dose.rate_j_g_s, clock.now() - self._t_offset_s)
         self.record = RecordWriter(Path(records_dir) / RUNS_DIR, self.run_id, rotate_bytes=1 << 30, keep=1,
                                    queue=records)
         if resume is not None:
@@ -167,7 +160,7 @@ class RecipeRunner:
 
     def _where(self) -> dict[str, Any]:
         """What a resume needs to know, in each sample and pause: the step's time and dose done, the run's time."""
-        return {"step_elapsed_s": self._step_elapsed_now(), "step_dose_j_g": self._dose_j_g, "run_s": self._run_s()}
+        return {"step_elapsed_s": self._step_elapsed_now(), "step_dose_j_g": self.dose.j_g, "run_s": self._run_s()}
 
     @property
     def steps(self) -> list[Step]:
@@ -197,8 +190,7 @@ class RecipeRunner:
         if self.state not in (RunState.PAUSED, RunState.HELD):
             raise CommandRefused(f"cannot resume a run that is {self.state}")
         self._pause_at_boundary = False
-        self._step_started_s = self.clock.now()
-        self._dose_clock_s = self.clock.now()
+        self._step_started_s = self.dose.clock_s = self.clock.now()
         if self.index < len(self.steps) and isinstance(self.steps[self.index], RampStep):
             self._step_begun = False  # re-issue the ramp from where the mill is now
             self._step_elapsed_s = 0.0
@@ -313,7 +305,13 @@ class RecipeRunner:
         if self.state is RunState.STOPPING:
             measured = c.measured
             still = measured is not None and max(measured.rotary_rpm, measured.vibration_rpm) < STANDSTILL_RPM
-            if c.state is S.TRIPPED or (c.state is S.ARMED and still):
+            if c.state is S.TRIPPED:  # a trip in the run's final stop: recorded, and the run is not DONE
+                self._write("trip", cause=c.trip_cause, step=min(self.index + 1, len(self.steps)))
+                if self._finish_as is RunState.DONE:
+                    self._finish_as, self.reason = RunState.FAILED, f"interlock trip in the final stop: {c.trip_cause}"
+                self._enter(self._finish_as, self.reason or "stopped")
+                self._end()
+            elif c.state is S.ARMED and still:
                 self._enter(self._finish_as, self.reason or "stopped")
                 self._end()
             return
@@ -327,7 +325,7 @@ class RecipeRunner:
                 return
         if self._step_done(now):
             self._write(
-                "step_end", step=self.index + 1, kind=self.steps[self.index].kind, dose_kj_g=self._dose_j_g * 1e-3
+                "step_end", step=self.index + 1, kind=self.steps[self.index].kind, dose_kj_g=self.dose.j_g * 1e-3
             )
             self.index += 1
             if self.index >= len(self.steps):
@@ -346,8 +344,7 @@ class RecipeRunner:
         self._step_started_s = self.clock.now()
         self._step_elapsed_s = 0.0
         self._step_begun = False
-        self._dose_j_g = 0.0
-        self._dose_clock_s = self.clock.now()
+        self.dose.restart(self.clock.now())
         self._write("step_start", step=self.index + 1, kind=step.kind, planned_s=self.plan.steps[self.index].duration_s)
         if isinstance(step, PauseStep):
             self._enter(RunState.PAUSED, step.message)
@@ -362,13 +359,14 @@ class RecipeRunner:
         self._step_begun = False
         self._write("step_start", step=self.index + 1, kind=step.kind, planned_s=self.plan.steps[self.index].duration_s,
                     resumed=True, credited_s=point.credit_s, credited_dose_j_g=point.dose_j_g)
-        self._step_elapsed_s, self._dose_j_g = point.credit_s, point.dose_j_g
+        self._step_elapsed_s = point.credit_s
+        self.dose.restart(self.clock.now(), point.dose_j_g)
         target = point.restore
         if isinstance(step, RampStep):  # the ramp itself runs again from standstill; first its furnace in force
             if step.furnace_c is None and target.furnace_c is not None:
                 self.controller.set_furnace(target.furnace_c, rate_c_per_min=target.heating_rate_c_per_min,
                                             source=self.source)
-            self._step_started_s = self._dose_clock_s = self.clock.now()
+            self._step_started_s = self.dose.clock_s = self.clock.now()
             return
         band = self._tolerances(step).furnace_c if isinstance(step, HoldStep) else None
         self._restore = Restore(target, self._tolerances(step).speed_rpm, band)
@@ -381,7 +379,7 @@ class RecipeRunner:
         """The mill is back at the step's setpoints: the step's clock runs again."""
         self._restore = None
         self.reason = "resumed"
-        self._step_started_s = self._dose_clock_s = self.clock.now()
+        self._step_started_s = self.dose.clock_s = self.clock.now()
         self._write("restored", step=self.index + 1, credited_s=self._step_elapsed_s)
         step = self.steps[self.index]
         if isinstance(step, PauseStep):
@@ -432,7 +430,8 @@ class RecipeRunner:
             self._check_furnace_band(step)
             seconds = step.seconds
             if seconds is None:
-                return self._dose_reached(step, now, elapsed)
+                return self.dose.reached(step, now, elapsed, self.state is RunState.RUNNING,
+                                         self.plan.steps[self.index].duration_s)
             return self.state is RunState.RUNNING and elapsed >= seconds
         if isinstance(step, WaitFurnaceStep):
             furnace = c.furnace
@@ -445,31 +444,6 @@ class RecipeRunner:
                 )
             return False
         return self.state is RunState.RUNNING  # a pause step ends when resumed
-
-    def _dose_rate_j_g_s(self) -> float:
-        """The node's current specific energy dose rate (J/g/s): its impact rate × energy per gram of powder."""
-        last = self.controller.tracker.tracks[PhysicsTelemetry].last
-        if not isinstance(last, PhysicsTelemetry) or not last.detached:
-            return 0.0
-        config = self.controller.config
-        rate = whole_mill_rate_hz(ModelVariant(config.model.variant), config.mill.rods.count, last.impact_rate_hz)
-        return rate * last.impact_energy_mj * 1e-3 / self.plan.powder_charge_g
-
-    def _dose_reached(self, step: HoldStep, now: float, elapsed: float) -> bool:
-        """Integrate the dose while running; done at the step's dose. Fails past twice the planned time."""
-        assert step.dose_kj_g is not None
-        if self.state is RunState.RUNNING:
-            self._dose_j_g += self._dose_rate_j_g_s() * max(now - self._dose_clock_s, 0.0)
-        self._dose_clock_s = now
-        if self._dose_j_g >= step.dose_kj_g * 1e3:
-            return self.state is RunState.RUNNING
-        planned = self.plan.steps[self.index].duration_s
-        if elapsed > 2.0 * planned + SETTLE_TIMEOUT_S:
-            raise CommandRefused(
-                f"dose step: {self._dose_j_g * 1e-3:.4g} of {step.dose_kj_g:g} kJ/g after {elapsed:.0f} s, "
-                f"more than twice the planned {planned:.0f} s (is the node reporting impacts?)"
-            )
-        return False
 
     def _check_furnace_band(self, step: HoldStep) -> None:
         c = self.controller
@@ -508,16 +482,6 @@ class RecipeRunner:
             "gap_s": self._gap_s,
             "resumed": self.resumed is not None,
         }
-
-
-def clock_stamp() -> str:
-    """A sortable UTC timestamp for run ids."""
-    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
-
-
-def new_run_id() -> str:
-    """A new run id: the UTC start time and six random hex digits (history.RUN_ID_PATTERN)."""
-    return f"{clock_stamp()}-{uuid.uuid4().hex[:6]}"
 
 
 __all__ = ["FINAL", "RecipeRunner", "RunState", "new_run_id"]

@@ -107,12 +107,23 @@ def test_a_stop_under_way_is_kept_when_another_begins(fresh: SpeedExpectation) -
     assert fresh.stop_end_s == pytest.approx(1.0 + first.duration_s + WINDOW_S)
 
 
-def test_after_the_stop_the_band_is_what_was_commanded_again(fresh: SpeedExpectation) -> None:
+def test_after_the_stop_the_band_is_what_was_commanded_again_once_the_ceiling_is_standstill(
+    fresh: SpeedExpectation,
+) -> None:
     fresh.commanded(0.0, SpeedPoint(100.0, 400.0))
-    fresh.begin_stop(1.0, None)
+    stop = fresh.begin_stop(1.0, None)
+    fresh.commanded(1.0, SpeedPoint(0.0, 0.0))  # the controller commands standstill through a stop
     fresh.end_stop()
     assert fresh.stop is None
-    assert fresh.band(1.0) == ((100.0 - TOL, 100.0 + TOL), (400.0 - TOL, 400.0 + TOL))
+    assert fresh.band(1.0) == ((-TOL, 100.0 + TOL), (-TOL, 400.0 + TOL))  # the ceiling, a window late
+    fresh.commanded(1.0 + WINDOW_S, SpeedPoint(20.0, 80.0))
+    halfway = stop.at(stop.duration_s / 2.0)
+    (_, r_high), (_, v_high) = fresh.band(1.0 + WINDOW_S + stop.duration_s / 2.0)  # the ceiling, read a window late
+    assert (r_high - TOL, v_high - TOL) == pytest.approx(
+        (max(20.0, halfway.omega_r_rpm), max(80.0, halfway.omega_v_rpm)))
+    end_s = 1.0 + stop.duration_s + WINDOW_S
+    fresh.commanded(end_s, SpeedPoint(20.0, 80.0))
+    assert fresh.band(end_s + WINDOW_S) == ((20.0 - TOL, 20.0 + TOL), (80.0 - TOL, 80.0 + TOL))
 
 
 # -- the judgement: above the band for the debounce count; at rest through a window though told to turn -----
@@ -199,3 +210,46 @@ def test_a_drive_that_turns_again_restarts_the_at_rest_window(fresh: SpeedExpect
     assert fresh.check(10.5, 0.0, 400.0) is not None
     fresh.reset()
     assert fresh.check(10.5, 0.0, 400.0) is None  # forgotten: a whole window again
+
+
+# -- after the node reports the stop done: the drives still settle under the ceiling -------------------------
+
+
+def test_a_drive_settling_after_the_node_reported_the_stop_done_is_not_judged_until_the_ceiling_is_standstill(
+    fresh: SpeedExpectation,
+) -> None:
+    """The node calls a drive at rest at ≤ the tolerance: a 2.9 rpm drive's noisy sensor then reads 3.6 (seen)."""
+    hold(fresh, SpeedPoint(100.0, 400.0), 1.0)
+    stop = fresh.begin_stop(1.0, None)
+    for i in range(round((stop.duration_s + 0.2) / 0.1)):  # the controller commands standstill through the stop
+        fresh.commanded(1.0 + 0.1 * (i + 1), SpeedPoint(0.0, 0.0))
+    done_s = 1.0 + stop.duration_s + 0.2  # the node's report: its plan is over, its drives within the tolerance
+    fresh.end_stop()
+    assert fresh.stop is None
+
+    def sample(at_s: float) -> str | None:  # the controller's tick: standstill commanded, then a reading judged
+        fresh.commanded(at_s, SpeedPoint(0.0, 0.0))
+        return fresh.check(at_s, 0.0, TOL + 0.6)
+
+    assert [sample(done_s + 0.05 * i) for i in range(5)] == [None] * 5  # five noisy samples, 50 ms apart
+    # once the ended stop's ceiling is standstill, the band is what was commanded: the same reading trips
+    later_s = 1.0 + stop.duration_s + WINDOW_S
+    verdicts = [sample(later_s + 0.05 * i) for i in range(DEBOUNCE)]
+    assert verdicts[:-1] == [None] * (DEBOUNCE - 1)
+    assert verdicts[-1] is not None and "is not what was commanded (" in verdicts[-1]
+
+
+def test_a_new_stop_forgets_the_settling_of_the_last(fresh: SpeedExpectation) -> None:
+    hold(fresh, SpeedPoint(100.0, 400.0), 1.0)
+    first = fresh.begin_stop(1.0, None)
+    fresh.end_stop()
+    hold_s = 3.0  # the first stop's ceiling, a window late, is still 100/400 rpm here
+    assert hold_s < 1.0 + first.duration_s + WINDOW_S
+    for i in range(round(hold_s / 0.1)):
+        fresh.commanded(1.0 + 0.1 * i, SpeedPoint(0.0, 0.0))
+    fresh.commanded(hold_s, SpeedPoint(0.0, 0.0))
+    assert fresh.band(hold_s) == ((-TOL, 100.0 + TOL), (-TOL, 400.0 + TOL))
+    second = fresh.begin_stop(hold_s, (0.0, 0.0))  # a stop from standstill
+    assert second.duration_s == 0.0
+    fresh.end_stop()
+    assert fresh.band(hold_s + WINDOW_S) == ((-TOL, TOL), (-TOL, TOL))

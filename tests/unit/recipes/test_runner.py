@@ -116,6 +116,21 @@ def test_a_trip_mid_recipe_fails_the_run_with_its_cause(rig: Rig, tmp_path: Path
     assert last[-1]["status"] == "FAILED"
 
 
+def test_a_trip_in_the_final_stop_fails_the_run_instead_of_ending_it_done(rig: Rig, tmp_path: Path) -> None:
+    """The recipe's steps are done and its stop under way: a runaway then is a trip, and the run is not DONE."""
+    runner = runner_for(rig, DEMO, tmp_path)
+    drive(rig, runner, 150.0, until=lambda: runner.state is RunState.STOPPING)
+    assert runner.state is RunState.STOPPING and runner.index == len(runner.steps)
+    rig.inject(SimFaultCode.ROTARY_RUNAWAY, 200.0)
+    drive(rig, runner, 30.0)
+    assert rig.controller.trip_cause
+    assert runner.state is RunState.FAILED
+    assert runner.reason.startswith("interlock trip in the final stop: ")
+    last = list(read_records(runner.record.path))
+    assert [r["event"] for r in last][-2:] == ["trip", "end"]
+    assert last[-1]["status"] == "FAILED"
+
+
 def test_a_recipe_that_fails_preflight_cannot_start(rig: Rig, tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text('[recipe]\nname = "x"\n[[steps]]\nkind = "ramp"\nrotary_rpm = 250\nvibration_rpm = 800\n')
