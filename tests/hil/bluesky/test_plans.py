@@ -35,8 +35,21 @@ def _resting(status: StatusOut) -> bool:
 
 
 def _at_rest(service: Service) -> None:
+    seen: list[StatusOut] = []
+
+    def resting() -> bool:
+        seen[:] = [watch.status()]
+        return _resting(seen[0])
+
     with service.client("watch") as watch:
-        wait_for(lambda: _resting(watch.status()), 60.0, "the mill at rest")
+        try:
+            wait_for(resting, 60.0, "the mill at rest")
+        except pytest.fail.Exception as exc:  # say where the mill is instead
+            last = seen[0] if seen else None
+            shown = "no status" if last is None else (
+                f"{last.state}, targets {last.target_rotary_rpm}/{last.target_vibration_rpm} rpm, measured "
+                f"{last.measured_rotary_rpm}/{last.measured_vibration_rpm} rpm, trip cause {last.trip_cause!r}")
+            pytest.fail(f"{exc}: last status {shown}")
 
 
 def test_the_example_mills_at_150_800_for_10_s_and_stores_the_readings_with_units(service: Service,
