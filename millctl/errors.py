@@ -58,6 +58,12 @@ class ConfigError(InvalidFileError):
     what = "configuration"
 
 
+class StudyError(InvalidFileError):
+    """A study file is missing, unreadable, or fails validation (:mod:`millctl.studies.schema`)."""
+
+    what = "study"
+
+
 _STEP_LOCATION = re.compile(r"\bsteps\.(\d+)(?:\.(?:ramp|hold|wait_furnace|pause))?(\.)?")
 """A validation error's location in the steps list (``steps.2.ramp.rotary_rpm``: 0-based, with the union's tag)."""
 
@@ -105,4 +111,5 @@ __all__ = [
     "MillctlError",
     "PhysicsInputError",
     "RecipeError",
+    "StudyError",
 ]

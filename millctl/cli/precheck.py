@@ -1,8 +1,8 @@
 """The CLI's first look at the files a command names, before anything heavy is imported (issue 37, item 5).
 
-A configuration named by ``--config`` or ``$MILLCTL_CONFIG``, and the recipe or
+A configuration named by ``--config`` or ``$MILLCTL_CONFIG``, the recipe or
 configuration file of ``recipe check|plan|run FILE`` and ``config check FILE``,
-are read here with the loaders' own function (:func:`millctl.files.read_toml`:
+and the study of ``study FILE`` are read here with the loaders' own function (:func:`millctl.files.read_toml`:
 a regular file under its bound; UTF-8; TOML nested at most
 ``MAX_TOML_DEPTH`` deep), which needs only the standard library. A device, a
 FIFO, a huge file, bad syntax or a nesting attack is refused at once with exit 1
@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from millctl.errors import ConfigError, InvalidFileError, RecipeError
+from millctl.errors import ConfigError, InvalidFileError, RecipeError, StudyError
 from millctl.files import MAX_TOML_DEPTH, read_toml
 
 CONFIG_ENV_VAR = "MILLCTL_CONFIG"
@@ -29,6 +29,7 @@ FILE_COMMANDS: dict[tuple[str, str], type[InvalidFileError]] = {
     ("recipe", "plan"): RecipeError,
     ("recipe", "run"): RecipeError,
     ("config", "check"): ConfigError,
+    ("study", ""): StudyError,
 }
 """(command, action) whose positional ``file`` is checked here → the error its loader raises."""
 

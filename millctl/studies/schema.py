@@ -40,13 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from millctl.config.loader import read_toml, validate_as
 from millctl.config.models import LimitLaw, ModelVariant
-from millctl.errors import InvalidFileError
-
-
-class StudyError(InvalidFileError):
-    """A study file is missing, unreadable, or fails validation."""
-
-    what = "study"
+from millctl.errors import StudyError
 
 
 class _Strict(BaseModel):

@@ -86,6 +86,7 @@ COMMANDS: dict[str, Callable[[Path], tuple[str, ...]]] = {
     "recipe_check": lambda path: ("recipe", "check", str(path)),
     "recipe_run": lambda path: ("recipe", "run", str(path), "--socket", "nobody.sock"),
     "config_check": lambda path: ("config", "check", str(path)),
+    "study": lambda path: ("study", str(path)),
     "config_option": lambda path: ("--config", str(path), "status", "--socket", "nobody.sock"),
 }
 
