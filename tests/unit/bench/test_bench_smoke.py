@@ -256,6 +256,10 @@ def test_parallel_sizes_each_study_from_the_rule_it_prints(monkeypatch: pytest.M
     assert sizes == [78, 78, 100, 100]
     assert p["local"]["efficiency"] == pytest.approx(1.0 / (2 * 0.55))
     assert p["dask"]["efficiency_with_startup"] == pytest.approx(1.0 / (2 * (0.55 + 2.5)))
+    sizes.clear()
+    capped = study.parallel(pairs=1, max_points=900)
+    assert sizes == [30, 30, 30, 30] and capped["rule_points"]["dask"] == 10000
+    assert "Measured below the rule (local, dask" in "\n".join(study.report(_study_results() | {"parallel": capped}))
 
 
 def test_every_issue_40_target_is_printed_with_measured_target_and_met() -> None:
