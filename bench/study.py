@@ -26,6 +26,7 @@
 from __future__ import annotations
 
 import math
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -212,9 +213,11 @@ def parallel(pairs: int, workers: int = 2, max_points: int | None = None) -> dic
         try:
             rule = worth_workers_rule(c, startup_s, workers)
             num = max(PROBE, math.ceil(math.sqrt(rule if max_points is None else min(rule, max_points))))
+            load = os.getloadavg()[0]
             paired = _paired(_study(num, SIM_METRICS, ranges=OFFLINE), pool, pairs)
             cold = statistics.median(paired["serial_s"]) / (workers * (statistics.median(paired["pool_s"]) + startup_s))
             out[key] = paired | {"startup_s": startup_s, "points": num * num, "efficiency_with_startup": cold}
+            out[key] |= {"loadavg_start": load, "loadavg_end": os.getloadavg()[0]}
             out["rule_points"][key] = rule
         finally:
             close()
@@ -355,6 +358,9 @@ def report(st: dict[str, Any]) -> list[str]:
             f"| {statistics.median(q['pool_s']):.3g} s | {q['speedup']:.2f}× | {q['efficiency']:.0%} "
             f"| {q['startup_s']:.2g} s | {q['efficiency_with_startup']:.0%} |"
         )
+    if all("loadavg_start" in p[k] for k in ("local", "dask")):
+        loads = "; ".join(f"{k} {p[k]['loadavg_start']:.2f} → {p[k]['loadavg_end']:.2f}" for k in ("local", "dask"))
+        lines += ["", f"Host load (1-minute average) at the start and the end of each pool's pairs: {loads}."]
     below = [k for k in ("local", "dask") if p[k]["points"] < p["rule_points"][k]]
     if below:
         lines += [

@@ -256,6 +256,9 @@ def test_parallel_sizes_each_study_from_the_rule_it_prints(monkeypatch: pytest.M
     assert sizes == [78, 78, 100, 100]
     assert p["local"]["efficiency"] == pytest.approx(1.0 / (2 * 0.55))
     assert p["dask"]["efficiency_with_startup"] == pytest.approx(1.0 / (2 * (0.55 + 2.5)))
+    assert p["local"]["loadavg_start"] >= 0.0 and p["dask"]["loadavg_end"] >= 0.0
+    text = "\n".join(study.report(_study_results() | {"parallel": p}))
+    assert "at the start and the end of each pool's pairs: local " in text
     sizes.clear()
     capped = study.parallel(pairs=1, max_points=900)
     assert sizes == [30, 30, 30, 30] and capped["rule_points"]["dask"] == 10000
