@@ -141,6 +141,38 @@ def where_time_goes(num: int, cam_phases: int = 0) -> dict[str, Any]:
     }  # fmt: skip
 
 
+CHECK_PHASES = 1024
+"""The reference of :func:`integral_check`: this many fixed cam phases a point."""
+
+
+def integral_check(points: int, rtol: float = 0.01, seed: int = 3) -> dict[str, Any]:
+    """The integral's stated error checked against :data:`CHECK_PHASES` fixed phases on seeded points of the map.
+
+    ``points`` points of the 100 × 100 map, integrated to ``rtol`` as a study does.
+    Power error: |P − P_ref| / P_ref (where P_ref = 0: 0 if P = 0, else 1); share error |f − f_ref|.
+    """
+    rng = np.random.default_rng(seed)
+    (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
+    rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, 100), np.linspace(lo_v, hi_v, 100), indexing="ij")
+    pick = rng.choice(rotary.size, size=min(points, rotary.size), replace=False)
+    chosen = {"rotary_rpm": rotary.ravel()[pick], "vibration_rpm": vibration.ravel()[pick]}
+    names = ["milling_power_w", "detach_fraction"]
+    config = bench_config()
+    est = evaluate_arrays(chosen, config, [*names, "cam_phase_error"], PointSettings(cam_phase_rtol=rtol))
+    ref = evaluate_arrays(chosen, config, names, PointSettings(cam_phases=CHECK_PHASES))
+    p, p_ref = est["milling_power_w"], ref["milling_power_w"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        power = np.where(p_ref > 0.0, np.abs(p - p_ref) / np.where(p_ref > 0.0, p_ref, 1.0), (p != 0.0) * 1.0)
+    share = np.abs(est["detach_fraction"] - ref["detach_fraction"])
+    return {
+        "points": int(pick.size), "rtol": rtol, "reference_phases": CHECK_PHASES,
+        "within_power": float(np.mean(power <= rtol)), "within_share": float(np.mean(share <= rtol)),
+        "within_both": float(np.mean((power <= rtol) & (share <= rtol))),
+        "power_error_p95": float(np.percentile(power, 95)), "power_error_max": float(power.max()),
+        "share_error_max": float(share.max()),
+    }  # fmt: skip
+
+
 def runner(num: int) -> dict[str, Any]:
     """The same map through the whole study runner, in this process."""
     study = _study(num)
@@ -304,6 +336,8 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     out["arrays_integrated"] = arrays(30 if quick else 100, 1, cam_phases=0)
     progress("study: where the integrated map's time goes (the level-(b) kernel timed apart)")
     out["arrays_breakdown"] = where_time_goes(30 if quick else 100)
+    progress(f"study: the integral's stated error against {CHECK_PHASES} fixed cam phases")
+    out["integral_check"] = integral_check(100 if quick else 600)
     progress("study: the map through the runner")
     out["runner"] = runner(30 if quick else 100)
     progress("study: level (c), the compiled many-event kernel, one core")
@@ -380,7 +414,7 @@ def breakdown_lines(st: dict[str, Any]) -> list[str]:
         f"{k}: {n:,} ({b['sample_share_at'][k]:.0%})"
         for k, n in sorted(b["points_at_phases"].items(), key=lambda x: int(x[0]))
     )
-    return [
+    lines = [
         f"Where the integrated map's time goes: the level-(b) kernel (`telemetry_batch`) takes "
         f"{b['kernel_share']:.0%} of the CPU time ({b['kernel_cpu_s']:.3g} of {b['cpu_s']:.3g} s; {b['samples']:,} "
         f"cam-phase samples at {b['kernel_us_per_sample']:.3g} µs each), the Python and numpy around it the rest. "
@@ -388,6 +422,17 @@ def breakdown_lines(st: dict[str, Any]) -> list[str]:
         f"first doubling (16 samples), the map would run at {b['floor_points_per_cpu_s']:.3g} points per CPU second.",
         "",
     ]
+    if "integral_check" in st:
+        c = st["integral_check"]
+        lines += [
+            f"The integral's stated error checked against {c['reference_phases']:,} fixed cam phases on {c['points']} "
+            f"random points of the map: the milling power within {c['rtol']:.0%} on {c['within_power']:.1%} of them, "
+            f"the detaching share within {c['rtol']:g} on {c['within_share']:.1%}, both on {c['within_both']:.1%}; "
+            f"the power's error {c['power_error_p95']:.2g} at the 95th percentile, {c['power_error_max']:.2g} at "
+            f"worst; the share's {c['share_error_max']:.2g} at worst.",
+            "",
+        ]
+    return lines
 
 
 def offline_lines(st: dict[str, Any]) -> list[str]:
@@ -428,6 +473,7 @@ __all__ = [
     "agreement_c",
     "arrays",
     "breakdown_lines",
+    "integral_check",
     "offline",
     "offline_lines",
     "parallel",

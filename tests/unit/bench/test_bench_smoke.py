@@ -205,6 +205,9 @@ def _study_results() -> dict[str, object]:
                              "samples": 400_000, "kernel_us_per_sample": 12.0,
                              "points_at_phases": {"16": 9_000, "256": 1_000},
                              "sample_share_at": {"16": 0.36, "256": 0.64}, "floor_points_per_cpu_s": 5.2e3},
+        "integral_check": {"points": 600, "rtol": 0.01, "reference_phases": 1024, "within_power": 0.9,
+                           "within_share": 0.95, "within_both": 0.88, "power_error_p95": 0.02, "power_error_max": 0.07,
+                           "share_error_max": 0.036},
         "offline": {"scenes": 200, "events": 300, "cpu_s": 1.0, "events_per_cpu_s": 300.0, "reference_scenes": 10,
                     "reference_events_per_cpu_s": 3.0, "speedup": 100.0, "points": 9, "runner_events": 90,
                     "runner_cpu_s": 0.5, "runner_wall_s": 0.6, "runner_events_per_cpu_s": 180.0},
@@ -226,6 +229,9 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     assert "c measured first on a 64-point study" in text
     assert "the level-(b) kernel (`telemetry_batch`) takes 96% of the CPU time (4.8 of 5 s; 400,000" in text
     assert "16: 9,000 (36%), 256: 1,000 (64%)" in text and "at 5.2e+03 points per CPU second" in text
+    checked = "against 1,024 fixed cam phases on 600 random points of the map: the milling power within 1% on 90.0%"
+    assert checked in text
+    assert "both on 88.0%; the power's error 0.02 at the 95th percentile, 0.07 at worst; the share's 0.036" in text
     assert "N·c ≥ 4·w·S" in text and "two workers pay from 240 / 480 level-(c) points" in text
     assert study.worth_workers_rule(0.05, 1.5, 2) == 240  # 4 · 2 · 1.5 s / 0.05 s
     assert "| level (c) through `StudyRunner`, 9 points, one worker | 9 | 0.5 s | 0.6 s | 180 events/s |" in text
