@@ -243,6 +243,7 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
 
 def test_parallel_sizes_each_study_from_the_rule_it_prints(monkeypatch: pytest.MonkeyPatch) -> None:
     from bench import study
+    from millctl.studies import SerialBackend
 
     class Pool:
         workers = 2
@@ -251,7 +252,7 @@ def test_parallel_sizes_each_study_from_the_rule_it_prints(monkeypatch: pytest.M
 
     def run_s(st: object, backend: object) -> float:
         sizes.append(st.parameters["rotary_rpm"].grid.num)  # type: ignore[attr-defined]
-        return 1.0 if isinstance(backend, study.SerialBackend) else 0.55
+        return 1.0 if isinstance(backend, SerialBackend) else 0.55
 
     monkeypatch.setattr(study, "per_point_s", lambda: 0.002)
     monkeypatch.setattr(study, "_started", lambda key, w: (Pool(), lambda: None, 1.5 if key == "local" else 2.5))
