@@ -378,15 +378,15 @@ def report(st: dict[str, Any]) -> list[str]:
         *offline_lines(st),
         "",
         "Parallel efficiency on level-(c) studies sized by the rule below (c measured first on a "
-        f"{p['probe_points']}-point study, then each pool started and warmed and its start-up S timed, then the "
-        "smallest square grid of at least 4·w·S/c points; serial and two workers alternated, medians of the wall "
+        f"{p.get('probe_points', '—')}-point study, then each pool started and warmed and its start-up S timed, then "
+        "the smallest square grid of at least 4·w·S/c points; serial and two workers alternated, medians of the wall "
         "times, workers warm; the last column counts S into the two workers' time):",
         "",
         "| workers | points (rule) | serial | two workers | speed-up | efficiency | start-up S | efficiency with S |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for key, label in (("local", "2 local processes"), ("dask", "2-worker local Dask cluster")):
-        q = p[key]
+        q = {"points": p.get("points", 0), "efficiency_with_startup": math.nan} | p[key]  # older results: one size
         lines.append(
             f"| {label} | {q['points']:,} ({p['rule_points'][key]:,}) | {statistics.median(q['serial_s']):.3g} s "
             f"| {statistics.median(q['pool_s']):.3g} s | {q['speedup']:.2f}× | {q['efficiency']:.0%} "
@@ -395,11 +395,12 @@ def report(st: dict[str, Any]) -> list[str]:
     if all("loadavg_start" in p[k] for k in ("local", "dask")):
         loads = "; ".join(f"{k} {p[k]['loadavg_start']:.2f} → {p[k]['loadavg_end']:.2f}" for k in ("local", "dask"))
         lines += ["", f"Host load (1-minute average) at the start and the end of each pool's pairs: {loads}."]
-    below = [k for k in ("local", "dask") if p[k]["points"] < p["rule_points"][k]]
+    below = [k for k in ("local", "dask") if p[k].get("points", p.get("points", 0)) < p["rule_points"][k]]
     if below:
         lines += [
             "",
-            f"Measured below the rule ({', '.join(below)}; `--quick` caps the study): not the target's figure.",
+            f"Measured below the rule ({', '.join(below)}: `--quick` caps the study, or older results): "
+            "not the target's figure.",
         ]
     lines += ["", rule_text(p), ""]
     return lines
