@@ -3,15 +3,21 @@
 * **arrays**: :func:`millctl.studies.engine.evaluate_arrays` on a 100 × 100 map of
   (ω_r 20–300 rpm, ω_v 200–1200 rpm) on Set A (corrected), every level-(a) and level-(b)
   metric at 4 fixed cam phases; points per CPU second of this thread (``time.thread_time``,
-  median of 3); and once more integrated over the cam phase to 1 % (the studies' default).
+  median of 3); and once more integrated over the cam phase to 1 % (the studies' default), with
+  the level-(b) kernel's share of the CPU time and the samples by the K the points settled at
+  (:func:`where_time_goes`), and the integral's stated error checked against 1,024 fixed phases
+  (:func:`integral_check`).
 * **runner**: the same map through :class:`~millctl.studies.StudyRunner` in this process (rows,
   constraints, the in-memory store), CPU and wall time.
 * **parallel**: a study large enough to need workers — level (c), the multi-rod simulation,
   on a grid of ω_r 120–200 × ω_v 400–800 rpm — on one worker and on two (local processes, and a
   2-worker local Dask cluster), **alternated**: serial, pool, serial, pool …, the pool already
-  started and warm; efficiency = median serial time / (2 × median pool time). The pool's start-up
-  S is timed apart; with c the serial cost of a point, a study of N points keeps ≥ 80 % efficiency
-  on w workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`.
+  started and warm; efficiency = median serial time / (2 × median pool time). With c the serial
+  cost of a point and S the pool's start-up, a study of N points keeps ≥ 80 % efficiency on w
+  workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`. c is
+  measured first (:func:`per_point_s`), then S of each pool, and each pool's study is the smallest
+  square grid the rule says pays (~10⁴ points: the piece takes minutes, the longest of the study's);
+  ``--quick`` caps it at :data:`QUICK_PARALLEL_POINTS`.
 * **offline**: level (c), the compiled many-event kernel (:func:`~millctl.physics.simulate.simulate_compiled`)
   on random scenes of the :data:`OFFLINE` range, four revolutions each: events (impacts and detachments) per
   CPU second of this thread, against the reference engine's on the first scenes (the same run); and the
