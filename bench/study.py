@@ -3,15 +3,21 @@
 * **arrays**: :func:`millctl.studies.engine.evaluate_arrays` on a 100 × 100 map of
   (ω_r 20–300 rpm, ω_v 200–1200 rpm) on Set A (corrected), every level-(a) and level-(b)
   metric at 4 fixed cam phases; points per CPU second of this thread (``time.thread_time``,
-  median of 3); and once more integrated over the cam phase to 1 % (the studies' default).
+  median of 3); and once more integrated over the cam phase to 1 % (the studies' default), with
+  the level-(b) kernel's share of the CPU time and the samples by the K the points settled at
+  (:func:`where_time_goes`), and the integral's stated error checked against 1,024 fixed phases
+  (:func:`integral_check`).
 * **runner**: the same map through :class:`~millctl.studies.StudyRunner` in this process (rows,
   constraints, the in-memory store), CPU and wall time.
 * **parallel**: a study large enough to need workers — level (c), the multi-rod simulation,
   on a grid of ω_r 120–200 × ω_v 400–800 rpm — on one worker and on two (local processes, and a
   2-worker local Dask cluster), **alternated**: serial, pool, serial, pool …, the pool already
-  started and warm; efficiency = median serial time / (2 × median pool time). The pool's start-up
-  S is timed apart; with c the serial cost of a point, a study of N points keeps ≥ 80 % efficiency
-  on w workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`.
+  started and warm; efficiency = median serial time / (2 × median pool time). With c the serial
+  cost of a point and S the pool's start-up, a study of N points keeps ≥ 80 % efficiency on w
+  workers when N c ≥ 4 w S (from N c / (w S + N c) ≥ 0.8): :func:`worth_workers_rule`. c is
+  measured first (:func:`per_point_s`), then S of each pool, and each pool's study is the smallest
+  square grid the rule says pays (~10⁴ points: the piece takes minutes, the longest of the study's);
+  ``--quick`` caps it at :data:`QUICK_PARALLEL_POINTS`.
 * **offline**: level (c), the compiled many-event kernel (:func:`~millctl.physics.simulate.simulate_compiled`)
   on random scenes of the :data:`OFFLINE` range, four revolutions each: events (impacts and detachments) per
   CPU second of this thread, against the reference engine's on the first scenes (the same run); and the
@@ -25,6 +31,8 @@
 
 from __future__ import annotations
 
+import math
+import os
 import statistics
 import time
 from collections.abc import Callable
@@ -33,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from bench.common import bench_config
+from millctl.physics import kernels
 from millctl.physics.many_agreement import many_event_agreement
 from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import simulate, simulate_compiled
@@ -97,6 +106,79 @@ def arrays(num: int, repeats: int = 3, cam_phases: int = FIXED_CAM_PHASES) -> di
     }  # fmt: skip
 
 
+def where_time_goes(num: int, cam_phases: int = 0) -> dict[str, Any]:
+    """One more run of :func:`arrays`' map with the level-(b) kernel's CPU time counted apart.
+
+    Every :func:`millctl.physics.kernels.telemetry_batch` call is timed (``time.thread_time``); the rest
+    of the CPU time is the Python and numpy around it. ``samples`` counts the cam-phase samples the
+    kernel computed; ``points_at_phases`` how many points settled at each K, and ``sample_share_at``
+    the share of all samples those points took; ``floor_points_per_cpu_s`` the rate if every point
+    settled at the first doubling (16 samples) at this run's kernel cost a sample.
+    """
+    (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
+    rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, num), np.linspace(lo_v, hi_v, num), indexing="ij")
+    points = {"rotary_rpm": rotary.ravel(), "vibration_rpm": vibration.ravel()}
+    config, settings = bench_config(), PointSettings(cam_phases=cam_phases)
+    evaluate_arrays({k: v[:4] for k, v in points.items()}, config, DEFAULT_METRICS, settings)
+    original, spent = kernels.telemetry_batch, {"cpu_s": 0.0, "samples": 0}
+
+    def timed(*args: Any, **kwargs: Any) -> Any:
+        start = time.thread_time()
+        table = original(*args, **kwargs)
+        spent["cpu_s"] += time.thread_time() - start
+        spent["samples"] += int(table.shape[0] * table.shape[1])
+        return table
+
+    kernels.telemetry_batch = timed
+    try:
+        cpu, _, out = _cpu_wall(lambda: evaluate_arrays(points, config, DEFAULT_METRICS, settings))
+    finally:
+        kernels.telemetry_batch = original
+    used = np.asarray(out["cam_phases_used"])
+    ks, counts = np.unique(used, return_counts=True)
+    samples = int(spent["samples"])
+    per_sample_s = spent["cpu_s"] / max(samples, 1)
+    return {
+        "points": num * num, "cam_phases": cam_phases, "cpu_s": cpu, "kernel_cpu_s": spent["cpu_s"],
+        "kernel_share": spent["cpu_s"] / cpu, "samples": samples, "kernel_us_per_sample": per_sample_s * 1e6,
+        "points_at_phases": {str(int(k)): int(n) for k, n in zip(ks, counts, strict=True)},
+        "sample_share_at": {str(int(k)): float(k * n / max(samples, 1)) for k, n in zip(ks, counts, strict=True)},
+        "floor_points_per_cpu_s": 1.0 / (16 * per_sample_s),
+    }  # fmt: skip
+
+
+CHECK_PHASES = 1024
+"""The reference of :func:`integral_check`: this many fixed cam phases a point."""
+
+
+def integral_check(points: int, rtol: float = 0.01, seed: int = 3) -> dict[str, Any]:
+    """The integral's stated error checked against :data:`CHECK_PHASES` fixed phases on seeded points of the map.
+
+    ``points`` points of the 100 × 100 map, integrated to ``rtol`` as a study does.
+    Power error: |P − P_ref| / P_ref (where P_ref = 0: 0 if P = 0, else 1); share error |f − f_ref|.
+    """
+    rng = np.random.default_rng(seed)
+    (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
+    rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, 100), np.linspace(lo_v, hi_v, 100), indexing="ij")
+    pick = rng.choice(rotary.size, size=min(points, rotary.size), replace=False)
+    chosen = {"rotary_rpm": rotary.ravel()[pick], "vibration_rpm": vibration.ravel()[pick]}
+    names = ["milling_power_w", "detach_fraction"]
+    config = bench_config()
+    est = evaluate_arrays(chosen, config, [*names, "cam_phase_error"], PointSettings(cam_phase_rtol=rtol))
+    ref = evaluate_arrays(chosen, config, names, PointSettings(cam_phases=CHECK_PHASES))
+    p, p_ref = est["milling_power_w"], ref["milling_power_w"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        power = np.where(p_ref > 0.0, np.abs(p - p_ref) / np.where(p_ref > 0.0, p_ref, 1.0), (p != 0.0) * 1.0)
+    share = np.abs(est["detach_fraction"] - ref["detach_fraction"])
+    return {
+        "points": int(pick.size), "rtol": rtol, "reference_phases": CHECK_PHASES,
+        "within_power": float(np.mean(power <= rtol)), "within_share": float(np.mean(share <= rtol)),
+        "within_both": float(np.mean((power <= rtol) & (share <= rtol))),
+        "power_error_p95": float(np.percentile(power, 95)), "power_error_max": float(power.max()),
+        "share_error_max": float(share.max()),
+    }  # fmt: skip
+
+
 def runner(num: int) -> dict[str, Any]:
     """The same map through the whole study runner, in this process."""
     study = _study(num)
@@ -139,24 +221,57 @@ def _dask_pool(workers: int) -> tuple[Backend, Callable[[], None]]:
     return backend, close
 
 
-def parallel(num: int, pairs: int) -> dict[str, Any]:
-    """Serial against two workers, alternated, on a level-(c) study; the pools' start-up apart."""
+PROBE = 8
+"""The level-(c) probe study that measures c, the serial cost of a point, before the pools are sized (PROBE²)."""
+
+
+QUICK_PARALLEL_POINTS = 900
+"""``--quick`` measures the efficiency on at most this many level-(c) points, whatever the rule says."""
+
+
+def per_point_s(num: int = PROBE, repeats: int = 3) -> float:
+    """c: the median serial wall time of a point of a ``num`` × ``num`` level-(c) study, in this process, warm."""
     study = _study(num, SIM_METRICS, ranges=OFFLINE)
-    warm = _study(2, SIM_METRICS, ranges=OFFLINE)
-    out: dict[str, Any] = {"points": num * num}
+    _run_s(_study(2, SIM_METRICS, ranges=OFFLINE), SerialBackend())  # the compiled code loaded
+    return statistics.median(_run_s(study, SerialBackend()) for _ in range(repeats)) / (num * num)
+
+
+def parallel(pairs: int, workers: int = 2, max_points: int | None = None) -> dict[str, Any]:
+    """Serial against ``workers`` workers, alternated, on level-(c) studies sized by the rule they test.
+
+    c (:func:`per_point_s`) is measured first; each pool is started and warmed, its start-up S timed;
+    the study is then the smallest square grid of at least :func:`worth_workers_rule` (c, S, w) points,
+    the size from which the printed rule says w workers keep ≥ 80 % efficiency. ``max_points`` (``--quick``)
+    caps the grid below the rule to keep the run short; the report shows both sizes.
+    """
+    c = per_point_s()
+    out: dict[str, Any] = {"per_point_s": c, "probe_points": PROBE * PROBE, "workers": workers, "rule_points": {}}
     for key in ("local", "dask"):
-        started = time.perf_counter()
-        pool, close = _local_pool(2) if key == "local" else _dask_pool(2)
+        pool, close, startup_s = _started(key, workers)
         try:
-            _run_s(warm, pool)  # start and warm the workers (imports, compiled code)
-            startup_s = time.perf_counter() - started
-            out[key] = _paired(study, pool, pairs) | {"startup_s": startup_s}
+            rule = worth_workers_rule(c, startup_s, workers)
+            num = max(PROBE, math.ceil(math.sqrt(rule if max_points is None else min(rule, max_points))))
+            load = os.getloadavg()[0]
+            paired = _paired(_study(num, SIM_METRICS, ranges=OFFLINE), pool, pairs)
+            cold = statistics.median(paired["serial_s"]) / (workers * (statistics.median(paired["pool_s"]) + startup_s))
+            out[key] = paired | {"startup_s": startup_s, "points": num * num, "efficiency_with_startup": cold}
+            out[key] |= {"loadavg_start": load, "loadavg_end": os.getloadavg()[0]}
+            out["rule_points"][key] = rule
         finally:
             close()
-    serial_s = statistics.median(out["local"]["serial_s"])
-    out["per_point_s"] = serial_s / (num * num)
-    out["rule_points"] = {k: worth_workers_rule(out["per_point_s"], out[k]["startup_s"], 2) for k in ("local", "dask")}
     return out
+
+
+def _started(key: str, workers: int) -> tuple[Backend, Callable[[], None], float]:
+    """A pool (``local`` or ``dask``) started and warmed (imports, compiled code), and how long that took (s)."""
+    started = time.perf_counter()
+    pool, close = _local_pool(workers) if key == "local" else _dask_pool(workers)
+    try:
+        _run_s(_study(2, SIM_METRICS, ranges=OFFLINE), pool)
+    except BaseException:
+        close()
+        raise
+    return pool, close, time.perf_counter() - started
 
 
 def worth_workers_rule(per_point_s: float, startup_s: float, workers: int) -> int:
@@ -225,6 +340,10 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     out: dict[str, Any] = {"arrays": arrays(30 if quick else 100)}
     progress("study: the level-(b) map as arrays, integrated over the cam phase to 1 %")
     out["arrays_integrated"] = arrays(30 if quick else 100, 1, cam_phases=0)
+    progress("study: where the integrated map's time goes (the level-(b) kernel timed apart)")
+    out["arrays_breakdown"] = where_time_goes(30 if quick else 100)
+    progress(f"study: the integral's stated error against {CHECK_PHASES} fixed cam phases")
+    out["integral_check"] = integral_check(100 if quick else 600)
     progress("study: the map through the runner")
     out["runner"] = runner(30 if quick else 100)
     progress("study: level (c), the compiled many-event kernel, one core")
@@ -232,7 +351,7 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     progress("study: level (c), compiled against the reference event for event")
     out["agreement_c"] = agreement_c(60 if quick else 1000, 0.5)
     progress("study: parallel efficiency, alternated serial and two workers (local, Dask)")
-    out["parallel"] = parallel(6 if quick else 24, 1 if quick else 3)
+    out["parallel"] = parallel(1 if quick else 3, max_points=QUICK_PARALLEL_POINTS if quick else None)
     return out
 
 
@@ -261,21 +380,65 @@ def report(st: dict[str, Any]) -> list[str]:
         f"| level (c) through `StudyRunner`, {o['points']} points, one worker | {o['points']} "
         f"| {o['runner_cpu_s']:.3g} s | {o['runner_wall_s']:.3g} s | {o['runner_events_per_cpu_s']:.3g} events/s |",
         "",
+        *breakdown_lines(st),
         *offline_lines(st),
         "",
-        f"Parallel efficiency on a level-(c) study of {p['points']} points (serial and two workers alternated, "
-        "medians of the wall times, workers started and warm):",
+        "Parallel efficiency on level-(c) studies sized by the rule below (c measured first on a "
+        f"{p.get('probe_points', '—')}-point study, then each pool started and warmed and its start-up S timed, then "
+        "the smallest square grid of at least 4·w·S/c points; serial and two workers alternated, medians of the wall "
+        "times, workers warm; the last column counts S into the two workers' time):",
         "",
-        "| workers | serial | two workers | speed-up | efficiency | start-up S | fewest points for ≥ 80 % |",
-        "|---|---|---|---|---|---|---|",
+        "| workers | points (rule) | serial | two workers | speed-up | efficiency | start-up S | efficiency with S |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for key, label in (("local", "2 local processes"), ("dask", "2-worker local Dask cluster")):
-        q = p[key]
+        q = {"points": p.get("points", 0), "efficiency_with_startup": math.nan} | p[key]  # older results: one size
         lines.append(
-            f"| {label} | {statistics.median(q['serial_s']):.3g} s | {statistics.median(q['pool_s']):.3g} s "
-            f"| {q['speedup']:.2f}× | {q['efficiency']:.0%} | {q['startup_s']:.2g} s | {p['rule_points'][key]:,} |"
+            f"| {label} | {q['points']:,} ({p['rule_points'][key]:,}) | {statistics.median(q['serial_s']):.3g} s "
+            f"| {statistics.median(q['pool_s']):.3g} s | {q['speedup']:.2f}× | {q['efficiency']:.0%} "
+            f"| {q['startup_s']:.2g} s | {q['efficiency_with_startup']:.0%} |"
         )
+    if all("loadavg_start" in p[k] for k in ("local", "dask")):
+        loads = "; ".join(f"{k} {p[k]['loadavg_start']:.2f} → {p[k]['loadavg_end']:.2f}" for k in ("local", "dask"))
+        lines += ["", f"Host load (1-minute average) at the start and the end of each pool's pairs: {loads}."]
+    below = [k for k in ("local", "dask") if p[k].get("points", p.get("points", 0)) < p["rule_points"][k]]
+    if below:
+        lines += [
+            "",
+            f"Measured below the rule ({', '.join(below)}: `--quick` caps the study, or older results): "
+            "not the target's figure.",
+        ]
     lines += ["", rule_text(p), ""]
+    return lines
+
+
+def breakdown_lines(st: dict[str, Any]) -> list[str]:
+    """Where the integrated map's CPU time goes (:func:`where_time_goes`), when it ran."""
+    if "arrays_breakdown" not in st:
+        return []
+    b = st["arrays_breakdown"]
+    settled = ", ".join(
+        f"{k}: {n:,} ({b['sample_share_at'][k]:.0%})"
+        for k, n in sorted(b["points_at_phases"].items(), key=lambda x: int(x[0]))
+    )
+    lines = [
+        f"Where the integrated map's time goes: the level-(b) kernel (`telemetry_batch`) takes "
+        f"{b['kernel_share']:.0%} of the CPU time ({b['kernel_cpu_s']:.3g} of {b['cpu_s']:.3g} s; {b['samples']:,} "
+        f"cam-phase samples at {b['kernel_us_per_sample']:.3g} µs each), the Python and numpy around it the rest. "
+        f"Points by the K they settled at (their share of the samples): {settled}. Were every point settled at the "
+        f"first doubling (16 samples), the map would run at {b['floor_points_per_cpu_s']:.3g} points per CPU second.",
+        "",
+    ]
+    if "integral_check" in st:
+        c = st["integral_check"]
+        lines += [
+            f"The integral's stated error checked against {c['reference_phases']:,} fixed cam phases on {c['points']} "
+            f"random points of the map: the milling power within {c['rtol']:.0%} on {c['within_power']:.1%} of them, "
+            f"the detaching share within {c['rtol']:g} on {c['within_share']:.1%}, both on {c['within_both']:.1%}; "
+            f"the power's error {c['power_error_p95']:.2g} at the 95th percentile, {c['power_error_max']:.2g} at "
+            f"worst; the share's {c['share_error_max']:.2g} at worst.",
+            "",
+        ]
     return lines
 
 
@@ -316,11 +479,15 @@ __all__ = [
     "OFFLINE",
     "agreement_c",
     "arrays",
+    "breakdown_lines",
+    "integral_check",
     "offline",
     "offline_lines",
     "parallel",
+    "per_point_s",
     "report",
     "rule_text",
     "run",
     "runner",
+    "where_time_goes",
 ]

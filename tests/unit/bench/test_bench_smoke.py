@@ -186,11 +186,13 @@ def test_millctl_bench_is_an_alias(tmp_path: Path, capsys: pytest.CaptureFixture
 
 def _study_results() -> dict[str, object]:
     parallel = {
-        "points": 144,
         "per_point_s": 0.05,
+        "probe_points": 64,
+        "workers": 2,
         "local": {"serial_s": [7.0, 7.2, 7.1], "pool_s": [4.0, 4.1, 3.9], "efficiency": 0.87, "speedup": 1.73,
-                  "startup_s": 1.5},
-        "dask": {"serial_s": [7.0], "pool_s": [5.0], "efficiency": 0.7, "speedup": 1.4, "startup_s": 3.0},
+                  "startup_s": 1.5, "points": 256, "efficiency_with_startup": 0.65},
+        "dask": {"serial_s": [7.0], "pool_s": [5.0], "efficiency": 0.7, "speedup": 1.4, "startup_s": 3.0,
+                 "points": 484, "efficiency_with_startup": 0.44},
         "rule_points": {"local": 240, "dask": 480},
     }  # fmt: skip
     return {
@@ -199,6 +201,13 @@ def _study_results() -> dict[str, object]:
         "arrays_integrated": {"points": 10_000, "cam_phases": 0, "phases_per_point": 66.4, "cpu_s": 5.0,
                               "wall_s": 5.5, "points_per_cpu_s": 2e3},
         "runner": {"points": 10_000, "cpu_s": 0.5, "wall_s": 1.0, "points_per_cpu_s": 2e4},
+        "arrays_breakdown": {"points": 10_000, "cam_phases": 0, "cpu_s": 5.0, "kernel_cpu_s": 4.8, "kernel_share": 0.96,
+                             "samples": 400_000, "kernel_us_per_sample": 12.0,
+                             "points_at_phases": {"16": 9_000, "256": 1_000},
+                             "sample_share_at": {"16": 0.36, "256": 0.64}, "floor_points_per_cpu_s": 5.2e3},
+        "integral_check": {"points": 600, "rtol": 0.01, "reference_phases": 1024, "within_power": 0.9,
+                           "within_share": 0.95, "within_both": 0.88, "power_error_p95": 0.02, "power_error_max": 0.07,
+                           "share_error_max": 0.036},
         "offline": {"scenes": 200, "events": 300, "cpu_s": 1.0, "events_per_cpu_s": 300.0, "reference_scenes": 10,
                     "reference_events_per_cpu_s": 3.0, "speedup": 100.0, "points": 9, "runner_events": 90,
                     "runner_cpu_s": 0.5, "runner_wall_s": 0.6, "runner_events_per_cpu_s": 180.0},
@@ -215,8 +224,14 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     assert "| 100 × 100 map, `evaluate_arrays`, 4 cam phases | 10,000 | 0.05 s | 0.1 s | 2e+05 |" in text
     integrated = "| the same integrated over the cam phase to 1 % (66 phases a point) | 10,000 | 5 s | 5.5 s | 2e+03 |"
     assert integrated in text
-    assert "| 2 local processes | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 240 |" in text
-    assert "| 2-worker local Dask cluster | 7 s | 5 s | 1.40× | 70% | 3 s | 480 |" in text
+    assert "| 2 local processes | 256 (240) | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 65% |" in text
+    assert "| 2-worker local Dask cluster | 484 (480) | 7 s | 5 s | 1.40× | 70% | 3 s | 44% |" in text
+    assert "c measured first on a 64-point study" in text
+    assert "the level-(b) kernel (`telemetry_batch`) takes 96% of the CPU time (4.8 of 5 s; 400,000" in text
+    assert "16: 9,000 (36%), 256: 1,000 (64%)" in text and "at 5.2e+03 points per CPU second" in text
+    checked = "against 1,024 fixed cam phases on 600 random points of the map: the milling power within 1% on 90.0%"
+    assert checked in text
+    assert "both on 88.0%; the power's error 0.02 at the 95th percentile, 0.07 at worst; the share's 0.036" in text
     assert "N·c ≥ 4·w·S" in text and "two workers pay from 240 / 480 level-(c) points" in text
     assert study.worth_workers_rule(0.05, 1.5, 2) == 240  # 4 · 2 · 1.5 s / 0.05 s
     assert "| level (c) through `StudyRunner`, 9 points, one worker | 9 | 0.5 s | 0.6 s | 180 events/s |" in text
@@ -224,6 +239,37 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     assert "999 of 1000 random scenes (99.90%" in text
     assert "- differs: paper 20.7/618.6 rpm, impact 238" in text
     assert "study" in cli.build_parser().format_help()
+
+
+def test_parallel_sizes_each_study_from_the_rule_it_prints(monkeypatch: pytest.MonkeyPatch) -> None:
+    from bench import study
+    from millctl.studies import SerialBackend
+
+    class Pool:
+        workers = 2
+
+    sizes: list[int] = []
+
+    def run_s(st: object, backend: object) -> float:
+        sizes.append(st.parameters["rotary_rpm"].grid.num)  # type: ignore[attr-defined]
+        return 1.0 if isinstance(backend, SerialBackend) else 0.55
+
+    monkeypatch.setattr(study, "per_point_s", lambda: 0.002)
+    monkeypatch.setattr(study, "_started", lambda key, w: (Pool(), lambda: None, 1.5 if key == "local" else 2.5))
+    monkeypatch.setattr(study, "_run_s", run_s)
+    p = study.parallel(pairs=1)
+    assert p["rule_points"] == {"local": 6000, "dask": 10000}  # 4 · 2 · S / c
+    assert p["local"]["points"] == 78 * 78 and p["dask"]["points"] == 100 * 100  # the smallest squares ≥ the rule
+    assert sizes == [78, 78, 100, 100]
+    assert p["local"]["efficiency"] == pytest.approx(1.0 / (2 * 0.55))
+    assert p["dask"]["efficiency_with_startup"] == pytest.approx(1.0 / (2 * (0.55 + 2.5)))
+    assert p["local"]["loadavg_start"] >= 0.0 and p["dask"]["loadavg_end"] >= 0.0
+    text = "\n".join(study.report(_study_results() | {"parallel": p}))
+    assert "at the start and the end of each pool's pairs: local " in text
+    sizes.clear()
+    capped = study.parallel(pairs=1, max_points=900)
+    assert sizes == [30, 30, 30, 30] and capped["rule_points"]["dask"] == 10000
+    assert "Measured below the rule (local, dask" in "\n".join(study.report(_study_results() | {"parallel": capped}))
 
 
 def test_every_issue_40_target_is_printed_with_measured_target_and_met() -> None:
