@@ -29,11 +29,14 @@ of one buffer (:func:`.events._scratch_in`) that the single-scene path keeps bet
 inf or nan, as in numpy, instead of raising. No kernel divides by zero on a valid scene (the guards are
 explicit), and with numba's default ("python") every division carries a check and an exception path
 that keeps LLVM from inlining the small kernels and from pruning their reference counts (the batch of
-:func:`first_impacts` runs 5–11 % faster, the same numbers bit for bit). The leaf kernels that allocate
-nothing (:mod:`.trig` but :func:`.trig._trig_rows`, :mod:`.motion`, :mod:`.roots`) are compiled without
-numba's reference counting (``_nrt=False``): a call of one with array arguments otherwise increments and
-decrements each array's count atomically, which took a fifth of a one-rod event's time in a perf profile
-(another 5 %; the same numbers bit for bit).
+:func:`first_impacts` runs 5–11 % faster, the same numbers bit for bit). Every kernel that makes no array
+(all but the batch loops, :func:`.events._scratch`, :func:`.events._scratch_in`, :func:`.trig._trig_rows` and
+:func:`.detach._detachment_times`) is a *leaf kernel* (:func:`.layout.leaf_kernel`), compiled without
+numba's reference counting (``_nrt=False``): a call with array arguments, or a view of one, otherwise
+increments and decrements the array's count atomically, which took 12 % of a one-rod event's time in a perf
+profile while only the trig sums, motion and root finder were so compiled. A leaf kernel cannot call one
+that allocates (numba compiles the callee with the caller's flags), hence the stackless bisection of
+:func:`.detach._split_cell`.
 
 Event loop: every rod starts pinned at eq. 11's angle; rods detach at their own
 times (``rods="all"``, :func:`first_impacts`) or only rod 0 does, the others

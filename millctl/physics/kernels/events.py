@@ -63,12 +63,13 @@ from millctl.physics.kernels.layout import (
     PARAMS,
     WALL,
     FloatArray,
+    leaf_kernel,
 )
 from millctl.physics.kernels.motion import _rel
-from millctl.physics.kernels.trig import _trig, _trig_rows
+from millctl.physics.kernels.trig import _fill_trig_rows, _trig
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     """Rod i leaves the wall at t: its flight state (eq. 2's velocity relative to the vial) and n_d.
 
@@ -87,13 +88,13 @@ def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     st[i, _S_ND] = 0.0 if exact else p[_R0] * true_n
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
     x, y, _, _ = _rel(p, st, i, t)
     st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _scratch_len(n_max):  # type: ignore[no-untyped-def]
     """Length of the one float64 buffer that holds :func:`_scratch_in`'s work arrays for up to n_max rods."""
     pairs = n_max * (n_max + 1)
@@ -135,14 +136,15 @@ def _scratch(n_max):  # type: ignore[no-untyped-def]
     return _scratch_in(np.zeros(_scratch_len(n_max)), n_max)
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore[no-untyped-def]
     """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring.
 
     ``scratch``: :func:`_scratch` for at least this scene's number of rods.
     """
     n = int(p[_N])
-    tr = _trig_rows(p, n, scratch[4])
+    tr = scratch[4][:n]
+    _fill_trig_rows(p, n, tr)
     st = scratch[5][:n]
     st[:, :] = 0.0
     det_columns = scratch[6]
@@ -216,7 +218,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
         t = t_det
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
     """Contact kinematics, lab contact point, absolute speed and energy (events.contact_kinematics, eq. 19)."""
     x, y, vx, vy = _rel(p, st, i, t)

@@ -59,3 +59,27 @@ def test_threads_do_not_share_the_work_arrays(set_a_corrected: MillModel) -> Non
     for k, rows in got.items():
         ordered = rows if k % 2 == 0 else rows[::-1]
         assert all(_same(a, b) for a, b in zip(ordered, want, strict=True))
+
+
+def test_kernels_release_every_array_they_make(set_a_corrected: MillModel) -> None:
+    """The leaf kernels (no reference counting) neither leak nor free early the arrays their callers made."""
+    from numba.core.runtime import _nrt_python, rtsys
+
+    scenes = random_scenes(set_a_corrected, 30, 11)
+    rows = kernels.scene_rows(scenes)
+    kernels.first_impacts(rows[:2])  # compiled before counting
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    try:
+        before = rtsys.get_allocation_stats()
+        for rods in ("all", "one"):
+            result = kernels.first_impacts(rows, rods=rods)
+            assert result.shape == (30, len(kernels.OUT))
+            del result
+        after = rtsys.get_allocation_stats()
+    finally:
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
+    made, freed = after.alloc - before.alloc, after.free - before.free
+    assert made > 0
+    assert made == freed, f"{made} arrays made by the kernels, {freed} released"
