@@ -20,7 +20,8 @@ machine (``cache=True``), one module a concept:
   second-order margin that lets a grazing minimum be skipped only when it provably stays apart);
 * :mod:`.events` — the event loop to the first impact and its energy (eq. 19), the batch entry point;
 * :mod:`.telemetry` — level (b): the node telemetry's cam-phase samples with the no-slip check;
-* :mod:`.scene_call` — one scene at a time with reused arrays (the public API's ``exact``).
+* :mod:`.scene_call` — one scene at a time with reused arrays (the public API's ``exact``), and
+  :class:`EventCall`: one model's events, the scene as four floats, on arrays made and checked once.
 
 No array is allocated per scene: a batch makes its work arrays once (:func:`.events._scratch`), as views
 of one buffer (:func:`.events._scratch_in`) that the single-scene path keeps between calls.
@@ -125,7 +126,7 @@ from millctl.physics.kernels.layout import _WR as _WR
 from millctl.physics.kernels.layout import _WV as _WV
 from millctl.physics.kernels.layout import OUT, PARAMS, TELEMETRY, WALL, FloatArray, scene_row, scene_rows
 from millctl.physics.kernels.motion import _rel as _rel
-from millctl.physics.kernels.scene_call import SceneCall
+from millctl.physics.kernels.scene_call import EventCall, SceneCall
 from millctl.physics.kernels.telemetry import telemetry_batch, telemetry_samples
 from millctl.physics.kernels.trig import _trig as _trig
 from millctl.physics.kernels.trig import _trig_rows as _trig_rows
@@ -135,6 +136,7 @@ __all__ = [
     "PARAMS",
     "TELEMETRY",
     "WALL",
+    "EventCall",
     "FloatArray",
     "SceneCall",
     "detachment_times",

@@ -7,6 +7,7 @@ import math
 import threading
 
 import numpy as np
+import pytest
 
 from millctl.physics import kernels
 from millctl.physics.agreement import random_scenes
@@ -83,3 +84,36 @@ def test_kernels_release_every_array_they_make(set_a_corrected: MillModel) -> No
     made, freed = after.alloc - before.alloc, after.free - before.free
     assert made > 0
     assert made == freed, f"{made} arrays made by the kernels, {freed} released"
+
+
+def test_event_call_is_the_batch_row_for_one_rod_and_whole_scenes(set_a_corrected: MillModel) -> None:
+    """A prepared call of one model gives the batch kernel's row, bit for bit, for either question."""
+    from millctl.physics.methods import EventCall
+    from millctl.physics.model import Scene
+
+    scenes = [
+        Scene(set_a_corrected, s.omega_r_rad_s, s.omega_v_rad_s, s.theta0_rad, s.alpha0_rad)
+        for s in random_scenes(set_a_corrected, 40, 12)
+    ]
+    rows = kernels.scene_rows(scenes)
+    for rods, horizon, cap in (("one", math.inf, 2.0), ("all", 5.0, math.inf)):
+        call = EventCall(set_a_corrected, rods=rods)
+        want = kernels.first_impacts(rows, rods=rods, horizon_s=horizon, flight_cap_s=cap)
+        found = 0
+        for scene, row in zip(scenes, want, strict=True):
+            got = call(scene.omega_r_rad_s, scene.omega_v_rad_s, scene.theta0_rad, scene.alpha0_rad)
+            expected = None if row[kernels.OUT.index("found")] != 1.0 else row.tolist()
+            assert _same(None if got is None else got.tolist(), expected), (rods, scene)
+            found += got is not None
+        assert found > 0
+
+
+def test_event_call_checks_its_settings_once(set_a_corrected: MillModel) -> None:
+    from millctl.errors import PhysicsInputError
+    from millctl.physics.methods import EventCall
+
+    with pytest.raises(PhysicsInputError, match="rods = 'some'"):
+        EventCall(set_a_corrected, rods="some")
+    with pytest.raises(PhysicsInputError, match="tol_s = -1"):
+        EventCall(set_a_corrected, tol_s=-1.0)
+    assert EventCall(set_a_corrected)(0.0, 0.0) is None  # nothing moves: the rods stay pinned
