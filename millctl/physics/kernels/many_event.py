@@ -264,7 +264,9 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
                 hit = s <= 0.0 or abs(s) < near
                 if not hit and ds_before < 0.0 < ds:
                     if filled < SCAN_SAMPLES:
-                        filled = _fill(p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, SCAN_SAMPLES, turn, h)
+                        filled = _fill(
+                            p, st, n, count, pi, pj, pos, ts, sep, dsep, prev, filled, SCAN_SAMPLES, turn, h
+                        )
                     margin = 2.0 * ((math.sqrt(prev[k, 2]) + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel) * h * h / 8.0
                     hit = min(s_before, s) <= margin
                 if not hit:
