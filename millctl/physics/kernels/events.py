@@ -113,7 +113,7 @@ def _scratch_len(n_max):  # type: ignore[no-untyped-def]
     return _scratch_bounds(n_max)[7]
 
 
-@njit(cache=True, error_model="numpy", _nrt=True)
+@njit(cache=True, error_model="numpy", _nrt=True)  # type: ignore[call-overload]
 def _scratch_in(buf, n_max):  # type: ignore[no-untyped-def]
     """Work arrays of _event for up to n_max rods as views of one buffer (:func:`_scratch_len` long).
 
