@@ -26,7 +26,8 @@ import numpy as np
 from bench.common import bench_config, corrected_model
 from millctl.physics.agreement import compare, random_scenes
 from millctl.physics.batch import SceneBatch, first_impacts
-from millctl.physics.methods import first_impact
+from millctl.physics.methods import EventCall, first_impact
+from millctl.physics.model import Scene
 from millctl.safety import Envelope
 
 SEED = 17
@@ -50,32 +51,54 @@ def _cpu_and_wall(fn: Callable[[], object]) -> tuple[float, float]:
 
 
 def public_api(count: int, repeats: int = 5) -> dict[str, Any]:
-    """One event through the public API, ``methods.first_impact(scene, "exact")``, CPU µs per call (median).
+    """One event through the public API, CPU µs per call (median), against the batch kernel on the same scenes.
 
-    The same scenes through the batch kernel (``rods="all"``, the same question) give the kernel's own
-    share, measured alternately in this run: ``wrapping_us`` is what the Python call path adds to it.
+    ``one_rod``: one rod's event (``rods="one"``) through a prepared :class:`~millctl.physics.methods.EventCall`
+    of one model (the random scenes' speeds and phases, the model's own eccentricity), the scene as four floats;
+    the rest: a whole six-rod scene through ``methods.first_impact(scene, "exact")`` (a model per scene, as
+    :func:`~millctl.physics.agreement.random_scenes` draws them). Each is timed alternately with the batch kernel
+    (``rods`` the same) on the same scenes: ``wrapping_us`` is what the Python call path adds to the kernel.
     """
-    scenes = random_scenes(corrected_model(), count, SEED)
+    model = corrected_model()
+    scenes = random_scenes(model, count, SEED)
     rows = SceneBatch.from_scenes(scenes)
+    floats = [(s.omega_r_rad_s, s.omega_v_rad_s, s.theta0_rad, s.alpha0_rad) for s in scenes]
+    one_rows = SceneBatch.from_scenes([Scene(model, *f) for f in floats])
+    call = EventCall(model, rods="one")
     first_impact(scenes[0], "exact")  # load the compiled code
+    call(*floats[0])
     first_impacts(SceneBatch(rows.rows[:2]), rods="all")
+    first_impacts(SceneBatch(one_rows.rows[:2]), rods="one")
 
     def loop() -> None:
         for scene in scenes:
             first_impact(scene, "exact")
 
-    runs, kernel = [], []
+    def one_rod_loop() -> None:
+        for f in floats:
+            call(*f)
+
+    runs, kernel, one_runs, one_kernel = [], [], [], []
     for _ in range(repeats):
         runs.append(_cpu_and_wall(loop))
         kernel.append(_cpu_and_wall(lambda: first_impacts(rows, rods="all"))[0])
+        one_runs.append(_cpu_and_wall(one_rod_loop)[0])
+        one_kernel.append(_cpu_and_wall(lambda: first_impacts(one_rows, rods="one"))[0])
     us = float(np.median([c for c, _ in runs])) / count * 1e6
     kernel_us = float(np.median(kernel)) / count * 1e6
+    one_us = float(np.median(one_runs)) / count * 1e6
+    one_kernel_us = float(np.median(one_kernel)) / count * 1e6
     return {
         "scenes": count,
         "us_per_event": us,
         "us_per_event_wall": float(np.median([w for _, w in runs])) / count * 1e6,
         "kernel_us_per_scene": kernel_us,
         "wrapping_us": us - kernel_us,
+        "one_rod": {
+            "us_per_event": one_us,
+            "kernel_us_per_event": one_kernel_us,
+            "wrapping_us": one_us - one_kernel_us,
+        },
     }
 
 

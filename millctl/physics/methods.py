@@ -18,6 +18,11 @@ method          scheme                                                knob
 
 The reference is :func:`millctl.physics.reference.reference_first_impact`
 (closed form for r_d = 0 and one rod, mpmath otherwise).
+
+Many events of one model, fast: ``call = EventCall(model)`` checks the model and the settings once;
+``call(omega_r_rad_s, omega_v_rad_s, theta0_rad, alpha0_rad)`` is then one rod's event (``rods="one"``;
+``EventCall(model, rods="all")`` the whole scene, as ``exact``) as the kernel's result row
+(:data:`~millctl.physics.kernels.OUT` columns, reused by the next call) or None, with nothing built per call.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from millctl.physics import kernels
 from millctl.physics.events import ContactRow
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.ivp import ivp_first_contact
-from millctl.physics.kernels.scene_call import SceneCall
+from millctl.physics.kernels.scene_call import EventCall, SceneCall
 from millctl.physics.legacy import legacy_first_contact
 from millctl.physics.legacy_kernel import legacy_first_contact_compiled
 from millctl.physics.model import Scene
@@ -146,7 +151,14 @@ _SCENE_CALL = SceneCall()
 (_T, _ROD, _PARTNER, _X, _Y, _VN, _SPEED, _ENERGY, _VT) = (
     kernels.OUT.index(name)
     for name in (
-        "time_s", "rod", "partner", "x_m", "y_m", "normal_velocity_m_s", "speed_abs_m_s", "energy_j",
+        "time_s",
+        "rod",
+        "partner",
+        "x_m",
+        "y_m",
+        "normal_velocity_m_s",
+        "speed_abs_m_s",
+        "energy_j",
         "tangential_velocity_m_s",
     )
 )
@@ -179,4 +191,4 @@ def wall_angle_rad(scene: Scene, event: ImpactEvent) -> float:
     return math.atan2(event.y_m - yc, event.x_m)
 
 
-__all__ = ["METHODS", "ImpactEvent", "Method", "first_impact", "wall_angle_rad"]
+__all__ = ["METHODS", "EventCall", "ImpactEvent", "Method", "first_impact", "wall_angle_rad"]

@@ -20,7 +20,8 @@ machine (``cache=True``), one module a concept:
   second-order margin that lets a grazing minimum be skipped only when it provably stays apart);
 * :mod:`.events` — the event loop to the first impact and its energy (eq. 19), the batch entry point;
 * :mod:`.telemetry` — level (b): the node telemetry's cam-phase samples with the no-slip check;
-* :mod:`.scene_call` — one scene at a time with reused arrays (the public API's ``exact``).
+* :mod:`.scene_call` — one scene at a time with reused arrays (the public API's ``exact``), and
+  :class:`EventCall`: one model's events, the scene as four floats, on arrays made and checked once.
 
 No array is allocated per scene: a batch makes its work arrays once (:func:`.events._scratch`), as views
 of one buffer (:func:`.events._scratch_in`) that the single-scene path keeps between calls.
@@ -29,11 +30,14 @@ of one buffer (:func:`.events._scratch_in`) that the single-scene path keeps bet
 inf or nan, as in numpy, instead of raising. No kernel divides by zero on a valid scene (the guards are
 explicit), and with numba's default ("python") every division carries a check and an exception path
 that keeps LLVM from inlining the small kernels and from pruning their reference counts (the batch of
-:func:`first_impacts` runs 5–11 % faster, the same numbers bit for bit). The leaf kernels that allocate
-nothing (:mod:`.trig` but :func:`.trig._trig_rows`, :mod:`.motion`, :mod:`.roots`) are compiled without
-numba's reference counting (``_nrt=False``): a call of one with array arguments otherwise increments and
-decrements each array's count atomically, which took a fifth of a one-rod event's time in a perf profile
-(another 5 %; the same numbers bit for bit).
+:func:`first_impacts` runs 5–11 % faster, the same numbers bit for bit). Every kernel that makes no array
+(all but the batch loops, :func:`.events._scratch`, :func:`.events._scratch_in`, :func:`.trig._trig_rows` and
+:func:`.detach._detachment_times`) is a *leaf kernel* (:func:`.layout.leaf_kernel`), compiled without
+numba's reference counting (``_nrt=False``): a call with array arguments, or a view of one, otherwise
+increments and decrements the array's count atomically, which took 12 % of a one-rod event's time in a perf
+profile while only the trig sums, motion and root finder were so compiled. A leaf kernel cannot call one
+that allocates (numba compiles the callee with the caller's flags), hence the stackless bisection of
+:func:`.detach._split_cell`.
 
 Event loop: every rod starts pinned at eq. 11's angle; rods detach at their own
 times (``rods="all"``, :func:`first_impacts`) or only rod 0 does, the others
@@ -122,7 +126,7 @@ from millctl.physics.kernels.layout import _WR as _WR
 from millctl.physics.kernels.layout import _WV as _WV
 from millctl.physics.kernels.layout import OUT, PARAMS, TELEMETRY, WALL, FloatArray, scene_row, scene_rows
 from millctl.physics.kernels.motion import _rel as _rel
-from millctl.physics.kernels.scene_call import SceneCall
+from millctl.physics.kernels.scene_call import EventCall, SceneCall
 from millctl.physics.kernels.telemetry import telemetry_batch, telemetry_samples
 from millctl.physics.kernels.trig import _trig as _trig
 from millctl.physics.kernels.trig import _trig_rows as _trig_rows
@@ -132,6 +136,7 @@ __all__ = [
     "PARAMS",
     "TELEMETRY",
     "WALL",
+    "EventCall",
     "FloatArray",
     "SceneCall",
     "detachment_times",

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from millctl.physics.kernels.layout import (
     _F_DSEP,
     _F_SIGN_SEP,
@@ -28,12 +26,13 @@ from millctl.physics.kernels.layout import (
     _WR,
     _WV,
     WALL,
+    leaf_kernel,
 )
 from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _rel, _zero_length_departure
 from millctl.physics.kernels.roots import _brentq, _f, _xtol
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _scan_step_s(p):  # type: ignore[no-untyped-def]
     """1/8 of the shortest of the cam period, the revolution and the fall time √(2 r_r/g).
 
@@ -49,7 +48,7 @@ def _scan_step_s(p):  # type: ignore[no-untyped-def]
     return shortest / 8.0
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
     """Exact contact time in [a, b] of one candidate interval, or inf (a minimum that stays apart)."""
     if _f(_F_SIGN_SEP, p, st, tr, i, j, b) <= 0.0:
@@ -62,13 +61,13 @@ def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
     return math.inf
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _turned(c, s, c_step, s_step):  # type: ignore[no-untyped-def]
     """cos, sin of φ + δ from those of φ and δ."""
     return c * c_step - s * s_step, s * c_step + c * s_step
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _apart_for(wall, gap, dist, radial, v2, accel_fly, accel_held, st, j):  # type: ignore[no-untyped-def]
     """How long a pair at ``gap`` > 0 provably stays apart (s).
 
@@ -88,7 +87,7 @@ def _apart_for(wall, gap, dist, radial, v2, accel_fly, accel_held, st, j):  # ty
     return 2.0 * gap / (approach + math.sqrt(approach * approach + 2.0 * bound * gap))
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: ignore[no-untyped-def]
     """(time, rod, partner) of the first contact of a flying rod in [t_start, t_end]; time inf if none."""
     pairs, pair_ids, rods, rod_ids = scratch[0], scratch[1], scratch[2], scratch[3]

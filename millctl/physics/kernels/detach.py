@@ -29,12 +29,13 @@ from millctl.physics.kernels.layout import (
     _WR,
     _WV,
     FloatArray,
+    leaf_kernel,
 )
 from millctl.physics.kernels.roots import _brentq, _xtol
 from millctl.physics.kernels.trig import _trig, _trig012, _trig_bound, _trig_rows
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-def]
     """On [a, b] f' is monotone: split at f's critical point and look for a falling zero (inf: none)."""
     f_code, df_code = (_F_N, _F_DN) if sign > 0.0 else (_F_NEG_N, _F_NEG_DN)
@@ -65,12 +66,19 @@ _CELL_POSITIVE, _CELL_MONOTONE, _CELL_SPLIT = 0, 1, 2
 """What :func:`_cell_test` finds of a cell."""
 
 
-@njit(cache=True, error_model="numpy")
+_SPLIT_DEPTH = min(_MAX_DEPTH, 62)
+"""The subdivision's depth limit: the reference's (80) where an int64 can index a cell's halves (62).
+
+A cell 2⁻⁶² of a window wide is below the resolution of its time everywhere but within ~10⁻⁵ s of t = 0,
+and at the limit the cell is searched whole (:func:`_cell_test`), as at the reference's limit."""
+
+
+@leaf_kernel
 def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     """First t in (t0, t1] where sign·N falls through zero, given sign·N(t0) > 0; inf if it stays ≥ 0.
 
     Each cell is tested whole first (:func:`_cell_test`); only a cell that needs splitting pays for the
-    subdivision's stack (:func:`_split_cell`), so most calls allocate nothing.
+    subdivision (:func:`_split_cell`).
     """
     m2, m3 = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
     w_max = 0.0
@@ -95,45 +103,47 @@ def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     return math.inf
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _cell_test(tr, i, sign, a, b, depth, m2, m3):  # type: ignore[no-untyped-def]
     """[a, b] at this depth: certified positive (Taylor bound), searched whole (f″ of one sign, or deep), or split."""
     h = b - a
     f0, f1, f2 = _trig012(tr, i, 0.5 * (a + b), sign)
     if f0 - abs(f1) * 0.5 * h - m2 * h * h * 0.125 > 0.0:
         return _CELL_POSITIVE
-    if abs(f2) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
+    if abs(f2) > m3 * 0.5 * h or depth >= _SPLIT_DEPTH:
         return _CELL_MONOTONE
     return _CELL_SPLIT
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _split_cell(p, st, tr, i, sign, a, b, m2, m3):  # type: ignore[no-untyped-def]
-    """The first falling zero in a cell that needs splitting: bisection, leftmost half first; inf if none."""
-    stack = np.empty((2 * _MAX_DEPTH + 4, 3))  # (a, b, depth) of the intervals still to look at, leftmost on top
-    mid = 0.5 * (a + b)
-    stack[0, 0], stack[0, 1], stack[0, 2] = mid, b, 1.0
-    stack[1, 0], stack[1, 1], stack[1, 2] = a, mid, 1.0
-    top = 2
-    while top > 0:
-        top -= 1
-        a, b, depth = stack[top, 0], stack[top, 1], int(stack[top, 2])
-        verdict = _cell_test(tr, i, sign, a, b, depth, m2, m3)
-        if verdict == _CELL_POSITIVE:
+    """The first falling zero in a cell that needs splitting: bisection, leftmost half first; inf if none.
+
+    The halves are walked as the nodes (depth d, index k) of their binary tree, [a + (b − a)·k/2^d, the next
+    node's start] (the last one ends at b), so no stack is needed (a leaf kernel makes no array) and
+    neighbours, parents and children share their end points exactly.
+    """
+    width = b - a
+    depth, k = 1, 0
+    while True:
+        s = a + width * math.ldexp(float(k), -depth)
+        e = b if k + 1 == 1 << depth else a + width * math.ldexp(float(k + 1), -depth)
+        verdict = _cell_test(tr, i, sign, s, e, depth, m2, m3)
+        if verdict == _CELL_SPLIT:
+            depth, k = depth + 1, 2 * k  # its left half next
             continue
         if verdict == _CELL_MONOTONE:
-            root = _monotone_pieces_root(p, st, tr, i, sign, a, b)
+            root = _monotone_pieces_root(p, st, tr, i, sign, s, e)
             if root < math.inf:
                 return root
-            continue
-        mid = 0.5 * (a + b)
-        stack[top, 0], stack[top, 1], stack[top, 2] = mid, b, depth + 1
-        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = a, mid, depth + 1
-        top += 2
-    return math.inf
+        while depth > 0 and k % 2 == 1:  # a right half done: so is its parent
+            depth, k = depth - 1, k // 2
+        if depth == 0:
+            return math.inf
+        k += 1  # a left half done: its right sibling next
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _revolution_s(p):  # type: ignore[no-untyped-def]
     """One revolution; one cam period with the vial at rest; 1 s when both stand still."""
     if p[_WR] > 0.0:
@@ -143,7 +153,7 @@ def _revolution_s(p):  # type: ignore[no-untyped-def]
     return 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _window_s(p):  # type: ignore[no-untyped-def]
     """The detachment search's window: the shorter of one revolution and one cam period."""
     w = _revolution_s(p)
@@ -152,7 +162,7 @@ def _window_s(p):  # type: ignore[no-untyped-def]
     return w
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
     """A time up to which f > 0 is certified from t on by its first term alone, else t.
 
@@ -178,7 +188,7 @@ def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
     return t
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _falling_zero_windowed(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     """_falling_zero over [t0, t1], one window at a time from where N can first vanish, stopping at the first root."""
     w = _window_s(p)
@@ -198,7 +208,7 @@ def _falling_zero_windowed(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyp
     return math.inf
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _nudge(tr, i, t, horizon, sign):  # type: ignore[no-untyped-def]
     """The first time from t on where sign·N > 0, stepping geometrically off a root (inf: none)."""
     step = max(abs(t), 1.0) * 1e-13
@@ -209,7 +219,7 @@ def _nudge(tr, i, t, horizon, sign):  # type: ignore[no-untyped-def]
     return t
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _rearm(p, st, tr, i, t_start, horizon):  # type: ignore[no-untyped-def]
     """Skip the current dip of N: the first time after t_start at which N > 0 again after having been < 0."""
     t = t_start
@@ -224,7 +234,7 @@ def _rearm(p, st, tr, i, t_start, horizon):  # type: ignore[no-untyped-def]
     return math.inf if up == math.inf else _nudge(tr, i, up, horizon, 1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _never_detaches(tr, i):  # type: ignore[no-untyped-def]
     """Certified: N ≥ c − Σ|a_k| > 0 at every time."""
     return tr[i, 0] - _trig_bound(tr, i, 0) > 0.0

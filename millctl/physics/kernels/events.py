@@ -63,12 +63,13 @@ from millctl.physics.kernels.layout import (
     PARAMS,
     WALL,
     FloatArray,
+    leaf_kernel,
 )
 from millctl.physics.kernels.motion import _rel
-from millctl.physics.kernels.trig import _trig, _trig_rows
+from millctl.physics.kernels.trig import _fill_trig_rows, _trig
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     """Rod i leaves the wall at t: its flight state (eq. 2's velocity relative to the vial) and n_d.
 
@@ -87,43 +88,76 @@ def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     st[i, _S_ND] = 0.0 if exact else p[_R0] * true_n
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
     x, y, _, _ = _rel(p, st, i, t)
     st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
+def _scratch_bounds(n_max):  # type: ignore[no-untyped-def]
+    """Where :func:`_scratch_in`'s work arrays for n_max rods lie in their buffer: (pairs, b, c, d, e, f, g, end)."""
+    pairs = n_max * (n_max + 1)
+    b = pairs * 5
+    c = b + pairs * 2
+    d = c + n_max * 6
+    e = d + n_max
+    f = e + n_max * _TRIG_COLUMNS
+    g = f + n_max * _STATE_COLUMNS
+    return pairs, b, c, d, e, f, g, g + n_max * 3
+
+
+@leaf_kernel
 def _scratch_len(n_max):  # type: ignore[no-untyped-def]
     """Length of the one float64 buffer that holds :func:`_scratch_in`'s work arrays for up to n_max rods."""
-    pairs = n_max * (n_max + 1)
-    return pairs * 5 + pairs * 2 + n_max * 6 + n_max + n_max * (_TRIG_COLUMNS + _STATE_COLUMNS + 3)
+    return _scratch_bounds(n_max)[7]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=True)  # type: ignore[call-overload]
 def _scratch_in(buf, n_max):  # type: ignore[no-untyped-def]
     """Work arrays of _event for up to n_max rods as views of one buffer (:func:`_scratch_len` long).
 
     (pair columns, pair rod ids, rod columns, rod ids, trig rows, rod states, rod detachment columns);
-    the id arrays are int64 views of the buffer's float64 words. No allocation: the single-scene call
-    path (:class:`SceneCall`) keeps one buffer and makes these views per call.
+    the id arrays are int64 views of the buffer's float64 words. No allocation. Reference counted, and
+    explicitly so (a kernel without the option set is compiled with its first caller's): for counting
+    callers; a leaf kernel takes the same views from :func:`_scratch_views`.
     """
-    pairs = n_max * (n_max + 1)
-    a = 0
-    b = a + pairs * 5
-    pair_columns = buf[a:b].reshape((pairs, 5))
-    c = b + pairs * 2
-    pair_ids = buf[b:c].view(np.int64).reshape((pairs, 2))
-    d = c + n_max * 6
-    rod_columns = buf[c:d].reshape((n_max, 6))
-    e = d + n_max
-    rod_ids = buf[d:e].view(np.int64)
-    f = e + n_max * _TRIG_COLUMNS
-    trig_rows = buf[e:f].reshape((n_max, _TRIG_COLUMNS))
-    g = f + n_max * _STATE_COLUMNS
+    pairs, b, c, d, e, f, g, end = _scratch_bounds(n_max)
+    ids = buf[b:c].view(np.int64).reshape((pairs, 2))
+    rods = buf[c:d].reshape((n_max, 6))
+    trig = buf[e:f].reshape((n_max, _TRIG_COLUMNS))
     states = buf[f:g].reshape((n_max, _STATE_COLUMNS))
-    detach_columns = buf[g : g + n_max * 3].reshape((n_max, 3))
-    return (pair_columns, pair_ids, rod_columns, rod_ids, trig_rows, states, detach_columns)
+    return (
+        buf[:b].reshape((pairs, 5)),
+        ids,
+        rods,
+        buf[d:e].view(np.int64),
+        trig,
+        states,
+        buf[g:end].reshape((n_max, 3)),
+    )
+
+
+@leaf_kernel
+def _scratch_views(buf, n_max):  # type: ignore[no-untyped-def]
+    """:func:`_scratch_in`'s views for a leaf kernel (uncounted: they must not reach a counting kernel).
+
+    The single-scene call paths (:class:`SceneCall`, :class:`EventCall`) keep one buffer and take these per call.
+    """
+    pairs, b, c, d, e, f, g, end = _scratch_bounds(n_max)
+    ids = buf[b:c].view(np.int64).reshape((pairs, 2))
+    rods = buf[c:d].reshape((n_max, 6))
+    trig = buf[e:f].reshape((n_max, _TRIG_COLUMNS))
+    states = buf[f:g].reshape((n_max, _STATE_COLUMNS))
+    return (
+        buf[:b].reshape((pairs, 5)),
+        ids,
+        rods,
+        buf[d:e].view(np.int64),
+        trig,
+        states,
+        buf[g:end].reshape((n_max, 3)),
+    )
 
 
 @njit(cache=True, error_model="numpy")
@@ -135,14 +169,15 @@ def _scratch(n_max):  # type: ignore[no-untyped-def]
     return _scratch_in(np.zeros(_scratch_len(n_max)), n_max)
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore[no-untyped-def]
     """The first impact of one scene into ``out`` (:data:`OUT`); see the module docstring.
 
     ``scratch``: :func:`_scratch` for at least this scene's number of rods.
     """
     n = int(p[_N])
-    tr = _trig_rows(p, n, scratch[4])
+    tr = scratch[4][:n]
+    _fill_trig_rows(p, n, tr)
     st = scratch[5][:n]
     st[:, :] = 0.0
     det_columns = scratch[6]
@@ -216,7 +251,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
         t = t_det
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _contact(p, st, i, j, t, out):  # type: ignore[no-untyped-def]
     """Contact kinematics, lab contact point, absolute speed and energy (events.contact_kinematics, eq. 19)."""
     x, y, vx, vy = _rel(p, st, i, t)
@@ -262,7 +297,7 @@ def _batch(rows, all_rods, horizon, flight_cap, tol):  # type: ignore[no-untyped
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@leaf_kernel
 def _scene_event(model_row, omega_r, lift_omega, theta0, lift_alpha0, all_rods, horizon, flight_cap, tol, out, buf):  # type: ignore[no-untyped-def]
     """One scene's first impact into ``out``: ``model_row`` with the scene's speeds and phases, on ``buf``'s views.
 
@@ -271,9 +306,35 @@ def _scene_event(model_row, omega_r, lift_omega, theta0, lift_alpha0, all_rods, 
     n = int(model_row[_N])
     size = _scratch_len(n)
     p = buf[size : size + len(PARAMS)]
-    p[:] = model_row
+    for k in range(len(PARAMS)):  # not p[:] = model_row: an array copy needs reference counting
+        p[k] = model_row[k]
     p[_WR], p[_WV], p[_TH0], p[_A0] = omega_r, lift_omega, theta0, lift_alpha0
-    _event(p, all_rods, horizon, flight_cap, tol, out, _scratch_in(buf[:size], n))
+    _event(p, all_rods, horizon, flight_cap, tol, out, _scratch_views(buf[:size], n))
+
+
+_PREPARED_HEAD = ("rods", "all_rods", "horizon_s", "flight_cap_s", "tol_s", "lift_strokes")
+"""The first words of a prepared call's buffer (:func:`_prepared_event`): its settings; then the scene row
+(:data:`PARAMS`), the result row (:data:`OUT`) and the work arrays (:func:`_scratch_len`)."""
+
+
+(_H_RODS, _H_ALL, _H_HORIZON, _H_CAP, _H_TOL, _H_LIFT) = range(len(_PREPARED_HEAD))
+
+
+@leaf_kernel
+def _prepared_event(buf, omega_r, omega_v, theta0, alpha0):  # type: ignore[no-untyped-def]
+    """One scene's first impact on a prepared buffer (:data:`_PREPARED_HEAD`); True if it found one.
+
+    The scene: the cam motor's ω_r, ω_v (rad/s), θ0, α0 (rad); the result row is left in ``buf``.
+    """
+    n = int(buf[_H_RODS])
+    head = len(_PREPARED_HEAD)
+    p = buf[head : head + len(PARAMS)]
+    out = buf[head + len(PARAMS) : head + len(PARAMS) + len(OUT)]
+    lift = buf[_H_LIFT]
+    p[_WR], p[_WV], p[_TH0], p[_A0] = omega_r, lift * omega_v, theta0, lift * alpha0
+    work = buf[head + len(PARAMS) + len(OUT) :]
+    _event(p, buf[_H_ALL] != 0.0, buf[_H_HORIZON], buf[_H_CAP], buf[_H_TOL], out, _scratch_views(work, n))
+    return out[_O_FOUND] == 1.0
 
 
 def first_impacts(

@@ -21,11 +21,14 @@ from millctl.physics.model import Scene
 
 FloatArray = NDArray[np.float64]
 
-def leaf_kernel(fn: Callable[..., Any]) -> Any:
-    """``njit`` for a kernel that allocates nothing: cached, numpy's error model, no reference counting.
 
-    Without numba's reference counting (``_nrt=False``) a call with array arguments does not increment and
-    decrement each array's count atomically (the package docstring); such a kernel must not make arrays.
+def leaf_kernel(fn: Callable[..., Any]) -> Any:
+    """``njit`` for a kernel that makes no array: cached, numpy's error model, no reference counting.
+
+    Without numba's reference counting (``_nrt=False``) a call with array arguments, or a view taken of one,
+    does not increment and decrement the array's count atomically (the package docstring). Such a kernel must
+    not make an array, nor return one, nor call a kernel that returns one (that reference would never be
+    released): it fills arrays it is given. Numba refuses to compile one that allocates.
     """
     return njit(cache=True, error_model="numpy", _nrt=False)(fn)  # type: ignore[call-overload]
 

@@ -36,11 +36,12 @@ def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyp
     rows[i, _TA + k], rows[i, _TW + k], rows[i, _TP + k] = amplitude, frequency, phase
 
 
-@njit(cache=True, error_model="numpy")
-def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
-    """Row i: N/m of rod i (kinematics.normal_force_per_mass), three terms: g, and the cam's ±½ coupling.
+@leaf_kernel
+def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
+    """Fill rows 0..n−1 of ``rows``: N/m of rod i (kinematics.normal_force_per_mass), three terms each.
 
-    ``out``: an array of at least n rows to fill (its first n rows are returned), else a new one.
+    The terms: g, and the cam's ±½ coupling. Returns nothing, so that leaf kernels (no reference counting) can
+    call it.
     """
     wr, wv, a0 = p[_WR], p[_WV], p[_A0]
     if p[_PAPER] != 0.0:
@@ -50,13 +51,19 @@ def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
         constant = p[_R0] * wr * wr
         coupling = p[_RD] * wv * wv
     half = 0.5 * coupling
-    rows = np.zeros((n, _TRIG_COLUMNS)) if out is None else out[:n]
     for i in range(n):
         th0 = p[_TH0] + i * 2.0 * math.pi / n
         rows[i, 0], rows[i, _T_COUNT] = constant, 3.0
         _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
         _set_term(rows, i, 1, half, wv - wr, a0 - th0)
         _set_term(rows, i, 2, -half, wv + wr, a0 + th0)
+
+
+@njit(cache=True, error_model="numpy")
+def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
+    """The trig rows of :func:`_fill_trig_rows` in ``out`` (at least n rows; its first n are returned), or new ones."""
+    rows = np.zeros((n, _TRIG_COLUMNS)) if out is None else out[:n]
+    _fill_trig_rows(p, n, rows)
     return rows
 
 

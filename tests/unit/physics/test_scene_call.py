@@ -5,8 +5,10 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
+from typing import Any
 
 import numpy as np
+import pytest
 
 from millctl.physics import kernels
 from millctl.physics.agreement import random_scenes
@@ -59,3 +61,78 @@ def test_threads_do_not_share_the_work_arrays(set_a_corrected: MillModel) -> Non
     for k, rows in got.items():
         ordered = rows if k % 2 == 0 else rows[::-1]
         assert all(_same(a, b) for a, b in zip(ordered, want, strict=True))
+
+
+def _counts(nrt: Any) -> tuple[int, int]:
+    """numba's counts of arrays and array wrappers (meminfos) made and released so far."""
+    made = nrt.memsys_get_stats_alloc() + nrt.memsys_get_stats_mi_alloc()
+    return made, nrt.memsys_get_stats_free() + nrt.memsys_get_stats_mi_free()
+
+
+def test_kernels_release_every_array_they_make(set_a_corrected: MillModel) -> None:
+    """The leaf kernels (no reference counting) neither leak nor free early the arrays their callers made.
+
+    A leaf kernel that kept a counted view (a call of a kernel returning one) would leave the batch's work
+    buffer unreleased (12 made, 8 released when _event was made to take one); one that released a view it
+    never counted would free the buffer under the batch.
+    """
+    from numba.core.runtime import _nrt_python  # type: ignore[attr-defined]
+
+    from millctl.physics.methods import EventCall
+
+    scenes = random_scenes(set_a_corrected, 30, 11)
+    rows = kernels.scene_rows(scenes)
+    scene_call, event_call = kernels.SceneCall(), EventCall(set_a_corrected)
+    kernels.first_impacts(rows[:2])  # compiled before counting
+    scene_call.first_impact(scenes[0])
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    try:
+        made_before, freed_before = _counts(_nrt_python)
+        for rods in ("all", "one"):
+            result = kernels.first_impacts(rows, rods=rods)
+            assert result.shape == (30, len(kernels.OUT))
+            del result
+        for scene in scenes:
+            scene_call.first_impact(scene)
+            event_call(scene.omega_r_rad_s, scene.omega_v_rad_s, scene.theta0_rad, scene.alpha0_rad)
+        made_after, freed_after = _counts(_nrt_python)
+        made, freed = made_after - made_before, freed_after - freed_before
+    finally:
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
+    assert made > 0
+    assert made == freed, f"{made} arrays (and wrappers of numpy's arrays) made by the kernels, {freed} released"
+
+
+def test_event_call_is_the_batch_row_for_one_rod_and_whole_scenes(set_a_corrected: MillModel) -> None:
+    """A prepared call of one model gives the batch kernel's row, bit for bit, for either question."""
+    from millctl.physics.methods import EventCall
+    from millctl.physics.model import Scene
+
+    scenes = [
+        Scene(set_a_corrected, s.omega_r_rad_s, s.omega_v_rad_s, s.theta0_rad, s.alpha0_rad)
+        for s in random_scenes(set_a_corrected, 40, 12)
+    ]
+    rows = kernels.scene_rows(scenes)
+    for rods, horizon, cap in (("one", math.inf, 2.0), ("all", 5.0, math.inf)):
+        call = EventCall(set_a_corrected, rods=rods)
+        want = kernels.first_impacts(rows, rods=rods, horizon_s=horizon, flight_cap_s=cap)
+        found = 0
+        for scene, row in zip(scenes, want, strict=True):
+            got = call(scene.omega_r_rad_s, scene.omega_v_rad_s, scene.theta0_rad, scene.alpha0_rad)
+            expected = None if row[kernels.OUT.index("found")] != 1.0 else row.tolist()
+            assert _same(None if got is None else got.tolist(), expected), (rods, scene)
+            found += got is not None
+        assert found > 0
+
+
+def test_event_call_checks_its_settings_once(set_a_corrected: MillModel) -> None:
+    from millctl.errors import PhysicsInputError
+    from millctl.physics.methods import EventCall
+
+    with pytest.raises(PhysicsInputError, match="rods = 'some'"):
+        EventCall(set_a_corrected, rods="some")
+    with pytest.raises(PhysicsInputError, match="tol_s = -1"):
+        EventCall(set_a_corrected, tol_s=-1.0)
+    assert EventCall(set_a_corrected)(0.0, 0.0) is None  # nothing moves: the rods stay pinned
