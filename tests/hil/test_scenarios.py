@@ -1,9 +1,10 @@
 """The hil scenario suite (issue 7): what an operator does and what a failing machine does, over every transport.
 
-Each scenario starts the controller service (``millctl serve``) and the node
+The scenarios run the controller service (``millctl serve``) and the node
 (``python -m firmware_sim --fault-injection``) as separate processes on
 udp_multicast (inside ``tests/hil/in_netns``) or socketcan (vcan0, in the VM of
-``tests/vm/run``); the test process is a third bus node, the probe: it
+``tests/vm/run``): one pair started for consecutive scenarios and reset between
+them (tests/hil/mill_pool.py), a pair of its own for a scenario that kills one; the test process is a third bus node, the probe: it
 injects faults, plays the rogue sender and the E-stop button, and captures
 every frame with its receive time. Safety reactions are measured on that
 capture and asserted against bounds derived from the config
