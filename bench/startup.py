@@ -9,6 +9,11 @@ TOML; issue 37 item 5, docs/safety.md) must exit 1; the client commands run
 against a socket where no service listens and must exit 3. No figure here is a
 pass/fail bound: the tests assert what was imported, this prints what it cost.
 
+``--processes`` adds what the mill's long-running processes import before they
+do anything (issue 36, part 5: every hil and VM test starts them): ``millctl
+serve``'s service, ``python -m firmware_sim`` for the millbus node and for the
+CiA 402 drives, each as ``python -c "import …"`` of the modules that process loads.
+
 ``--compare DIR`` runs every case once more from another source tree (e.g.
 ``git worktree add /tmp/old main``), interleaved too, and prints its figures
 beside these: a before/after from one run, under one load.
@@ -53,6 +58,20 @@ def _cases(folder: Path) -> list[tuple[str, list[str], int]]:
     ]
 
 
+PROCESSES = [
+    ("import: millctl serve (service)", "import millctl.service.server"),
+    ("import: firmware_sim, millbus node", "import firmware_sim.__main__"),
+    ("import: firmware_sim, CiA 402 drives", "import firmware_sim.__main__, firmware_sim.cia402.process"),
+]
+"""(label, statement): the module-level imports of each process (the CLI's ``serve`` handler imports the service)."""
+
+TREE_PATH = (
+    "import sys\n"
+    "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in type(f).__module__]\n"
+    "sys.path.insert(0, {source!r})\n"
+)
+"""Prefix of a ``python -c`` text that imports millctl and firmware_sim from the tree ``source``."""
+
 FROM_TREE = (
     "import runpy, sys\n"
     "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in type(f).__module__]\n"
@@ -64,6 +83,9 @@ FROM_TREE = (
 
 
 def _millctl(args: list[str], source: Path | None) -> list[str]:
+    if args and args[0] == "-c":  # a PROCESSES statement
+        prefix = "" if source is None else TREE_PATH.format(source=str(source))
+        return [sys.executable, "-c", prefix + args[1]]
     if source is None:
         return [sys.executable, "-m", "millctl", *args]
     return [sys.executable, "-c", FROM_TREE, str(source), *args]
@@ -83,14 +105,19 @@ def _run(command: list[str]) -> tuple[float, float, int]:
     return wall_s, cpu_s, done.returncode
 
 
-def measure(repeat: int, compare: Path | None = None) -> list[dict[str, object]]:
+def measure(
+    repeat: int, compare: Path | None = None, processes: bool = False, cli: bool = True
+) -> list[dict[str, object]]:
     """One row per case, the baseline first: median wall and CPU seconds, ratios to the baseline, exit codes seen.
 
-    With ``compare``, each case also as ``<case> [compare]``, millctl imported from that source tree.
+    With ``compare``, each case also as ``<case> [compare]``, millctl imported from that source tree;
+    with ``processes``, the :data:`PROCESSES` imports too; without ``cli``, not the CLI's cases.
     """
     baseline = [sys.executable, "-c", "pass"]
     with tempfile.TemporaryDirectory(prefix="millctl-startup-") as tmp:
-        cases = _cases(Path(tmp))
+        cases = _cases(Path(tmp)) if cli else []
+        if processes:
+            cases += [(label, ["-c", statement], 0) for label, statement in PROCESSES]
         if compare is not None:
             cases = [c for case in cases for c in (case, (f"{case[0]} [compare]", *case[1:]))]
         samples: dict[str, list[tuple[float, float, int]]] = {"python -c pass": []}
@@ -120,10 +147,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=5, help="runs of each case, interleaved (median taken)")
     parser.add_argument("--compare", type=Path, metavar="DIR",
                         help="also run each case with millctl from this source tree (PYTHONPATH), e.g. main's")
+    parser.add_argument("--processes", action="store_true",
+                        help="also time the imports of the service and of the simulated node's two backends")
+    parser.add_argument("--only-processes", action="store_true", help="time only those (implies --processes)")
     args = parser.parse_args(argv)
     if args.compare is not None and not (args.compare / "millctl" / "__init__.py").is_file():
         parser.error(f"--compare {args.compare}: no millctl package there (name a source tree's top folder)")
-    rows = measure(max(1, args.repeat), args.compare)
+    rows = measure(max(1, args.repeat), args.compare, args.processes or args.only_processes, not args.only_processes)
     load = os.getloadavg()[0]
     sys.stdout.write(f"start-up of millctl, median of {args.repeat} runs each, load average {load:.1f}, "
                      f"{os.cpu_count()} cores\n")

@@ -16,7 +16,6 @@ import typing
 from collections.abc import Sequence
 from types import FrameType
 
-from firmware_sim.cia402.process import run_cia402
 from firmware_sim.node import Node
 from millctl.clock import MonotonicClock
 from millctl.config import load_config
@@ -148,6 +147,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if config.drives.backend is DriveBackend.CIA402:
         if estop_bus is not None:
             estop_bus.shutdown()
+        from firmware_sim.cia402.process import run_cia402  # canopen only for this backend (issue 36, part 5)
+
         return run_cia402(config, bus, bus_config, args, stop)
     if args.lie_readback:
         bus.shutdown()

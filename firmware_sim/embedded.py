@@ -7,17 +7,23 @@ docs/protocol.md, "CiA 402"). Both have ``tick()``, ``close()``, ``faults``
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import can
 
-from firmware_sim.cia402.mill import Cia402Mill
 from firmware_sim.node import Node
 from millctl.clock import Clock
 from millctl.config.models import DriveBackend, MillConfig
+
+if TYPE_CHECKING:
+    from firmware_sim.cia402.mill import Cia402Mill
 
 
 def simulated_mill(config: MillConfig, bus: can.BusABC, clock: Clock, *, fault_injection: bool) -> Node | Cia402Mill:
     """The simulated node (millbus) or drives (cia402) of ``config`` on ``bus``, stepped by its caller's clock."""
     if config.drives.backend is DriveBackend.CIA402:
+        from firmware_sim.cia402.mill import Cia402Mill  # canopen only for this backend (issue 36, part 5)
+
         return Cia402Mill(config, bus, clock, fault_injection=fault_injection)
     return Node(config, bus, clock, fault_injection=fault_injection)
 

@@ -4,7 +4,8 @@ N(t)/m is a trig sum (:func:`~millctl.physics.kinematics.normal_force_per_mass`)
 so bounds on its derivatives are exact. The search is certified, with no scan
 step: an interval is discarded when a second-order Taylor bound proves N > 0 on
 it; where N'' keeps one sign N' is monotone, so N has at most one critical point
-there, found as a root of N' (brentq) — this is how N's minima are tracked when N
+there, found as a root of N' (Brent's method: :func:`.roots.brentq`, scipy's
+algorithm without importing scipy) — this is how N's minima are tracked when N
 only grazes zero. Otherwise the interval is bisected. A minimum at which N stays
 ≥ 0 is reported as no detachment (pinned), honestly.
 
@@ -19,11 +20,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from millctl.config.models import ModelVariant
 from millctl.physics.kinematics import TrigSum, normal_force_per_mass
 from millctl.physics.model import Scene
+from millctl.physics.roots import brentq
 
 _MAX_DEPTH = 80
 _RTOL = 4.0 * 2.220446049250313e-16
@@ -93,7 +94,7 @@ def _monotone_pieces_root(f: TrigSum, a: float, b: float) -> float | None:
     for s, e in itertools.pairwise(ends):
         fs, fe = f(s), f(e)
         if fs > 0.0 and fe < 0.0:
-            return float(brentq(f, s, e, xtol=_xtol(s, e), rtol=_RTOL, maxiter=_MAXITER))
+            return brentq(f, s, e, xtol=_xtol(s, e), rtol=_RTOL, maxiter=_MAXITER)
         if fs > 0.0 and fe == 0.0 and f(e, 1) < 0.0:
             return e
     return None

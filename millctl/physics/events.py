@@ -9,7 +9,9 @@ root at departure (:func:`~millctl.physics.flight.departure_wall_gap`).
 Bracketing samples the separation and its exact time derivative on a grid
 (vectorised); a zero crossing is bracketed directly, and a local minimum (the
 derivative turning from − to +) is located by brentq on the derivative, so a
-grazing contact that dips below zero between two samples is not missed.
+grazing contact that dips below zero between two samples is not missed. The
+brentq is :func:`.roots.brentq` (scipy's algorithm without importing scipy: the
+node's telemetry reaches this module).
 """
 
 from __future__ import annotations
@@ -20,10 +22,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq
 
 from millctl.physics.flight import FlightState, RodState, WallState, departure_wall_gap, zero_length_departure
 from millctl.physics.model import Scene
+from millctl.physics.roots import brentq
 
 WALL = -1
 """Partner index of the vial wall."""
@@ -131,7 +133,7 @@ def _root(f: Callable[[float], float], a: float, b: float, tol_s: float = 0.0) -
     if fb == 0.0:
         return b
     xtol = max(tol_s, _RTOL * max(abs(a), abs(b)), 1e-300)  # a root at t = 0 has no relative scale
-    return float(brentq(f, a, b, xtol=xtol, rtol=_RTOL, maxiter=200))
+    return brentq(f, a, b, xtol=xtol, rtol=_RTOL, maxiter=200)
 
 
 def first_contact_time(

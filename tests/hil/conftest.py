@@ -28,7 +28,7 @@ import uuid
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import can
 import pytest
@@ -37,6 +37,10 @@ from tests.support.pace import cpu_share, scale_for_a_test, stretched, time_scal
 from tests.support.realtime import Role
 from tests.support.realtime import describe as describe_realtime
 from tests.support.realtime import popen as realtime_popen
+
+if TYPE_CHECKING:
+    from tests.hil.mill_pool import MillKind, MillPool
+    from tests.hil.scenario_support import Mill
 
 REPO = Path(__file__).resolve().parents[2]
 IN_VM = os.environ.get("MILLCTL_IN_VM") == "1"
@@ -344,8 +348,74 @@ def spawn(tmp_path: Path) -> Iterator[Spawner]:
     fails the test: a test stops what it starts (``spawn.stop(proc)``) or
     waits for it to exit.
     """
+    from tests.hil.mill_pool import OPEN_POOLS
+
+    for pool in OPEN_POOLS:  # no idle shared mill beside the processes this test starts
+        pool.close()
     spawner = Spawner(tmp_path, time_scale())
     yield spawner
     leaked = spawner.cleanup()
     if leaked:
         pytest.fail("processes left running at teardown (killed now):\n" + "\n".join(leaked), pytrace=False)
+
+
+# --- one mill for consecutive scenarios (tests/hil/mill_pool.py) ------------------------------------------------
+
+FAILED = pytest.StashKey[bool]()
+"""Set on a test item when any phase of it failed: its shared mill is torn down, not handed on."""
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
+    """Note a failed setup or call on the item (read by :func:`pooled_mill` at its teardown)."""
+    outcome = yield
+    if outcome.get_result().failed:  # type: ignore[attr-defined]
+        item.stash[FAILED] = True
+
+
+@pytest.fixture(scope="module")
+def mill_pool(tmp_path_factory: pytest.TempPathFactory) -> Iterator[MillPool]:
+    """The module's started mills, one per kind; torn down at the module's end, failing on processes left running."""
+    from tests.hil.mill_pool import MillPool
+
+    with MillPool(tmp_path_factory.mktemp("pool"), _make_transport, lambda d: Spawner(d, time_scale())) as pool:
+        yield pool
+    for note in pool.restarts:
+        print(f"mill pool: {note}")
+    if pool.leaked:
+        pytest.fail("processes left running at teardown (killed now):\n" + "\n".join(pool.leaked), pytrace=False)
+
+
+@contextlib.contextmanager
+def pooled_mill(
+    request: pytest.FixtureRequest, pool: MillPool, kind: MillKind, *, fresh: bool = False
+) -> Iterator[Mill]:
+    """The pool's mill of ``kind`` for one test; handed back at its end (torn down if the test failed)."""
+    mill = pool.get(kind, fresh=fresh)
+    try:
+        yield mill
+    finally:
+        pool.give_back(kind, failed=request.node.stash.get(FAILED, False))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """In a module with pooled scenarios: by transport, pooled first, so consecutive ones share a mill.
+
+    Otherwise file order; the order between modules is kept. Each test stays independent of the
+    others (the pool resets or restarts the mill between them), so this changes time, not meaning.
+    """
+    def key(item: pytest.Item) -> tuple[int, int, int]:
+        spec = getattr(item, "callspec", None)
+        name = spec.params.get("transport") if spec is not None else None
+        rank = TRANSPORTS.index(name) if name in TRANSPORTS else -1
+        return rank, 0 if "mill_pool" in getattr(item, "fixturenames", ()) else 1, position[item]
+
+    position = {item: i for i, item in enumerate(items)}
+    start = 0
+    while start < len(items):
+        end = start
+        while end < len(items) and items[end].module is items[start].module:  # type: ignore[attr-defined]
+            end += 1
+        if any("mill_pool" in getattr(item, "fixturenames", ()) for item in items[start:end]):
+            items[start:end] = sorted(items[start:end], key=key)
+        start = end

@@ -457,6 +457,11 @@ class Probe:
             seen = list(self._seen)
         return [s for s in seen if s.t > after and (where is None or where(s))]
 
+    def forget(self) -> None:
+        """Drop what was captured so far: a scenario handed a shared mill (tests/hil/mill_pool.py) sees its own."""
+        with self._lock:
+            self._seen.clear()
+
     def now(self) -> float:
         """The capture's clock (s, wall clock)."""
         return time.time()

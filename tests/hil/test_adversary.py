@@ -39,6 +39,8 @@ from millctl.protocol import (
     sequence_decay_s,
 )
 from tests.hil.adversary import MAX_FRAME_RATE_HZ, Adversary, raw_frame
+from tests.hil.conftest import pooled_mill
+from tests.hil.mill_pool import MillKind
 from tests.hil.scenario_support import (
     STANDSTILL_RPM,
     Mill,
@@ -57,6 +59,7 @@ from tests.support.pace import cpu_share
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
+    from tests.hil.mill_pool import MillPool
 
 pytestmark = pytest.mark.hil
 
@@ -65,19 +68,42 @@ LOW_RPM = (60.0, 300.0)
 Capture = pytest.CaptureFixture[str]
 
 
+NEEDS_A_BUS_NODE = "the adversary is a bus node of its own: python-can's virtual bus stays inside one process"
+
+
+def _running(started: Mill) -> Iterator[tuple[Mill, Probe, Adversary]]:
+    """``started`` RUNNING at ``LOW_RPM``, its probe, and an adversary on its bus (closed afterwards)."""
+    assert started.probe is not None
+    adversary = Adversary(started.config.bus, started.codec)
+    try:
+        started.run_at(*LOW_RPM)
+        yield started, started.probe, adversary
+    finally:
+        adversary.close()
+
+
 @pytest.fixture
-def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple[Mill, Probe, Adversary]]:
-    """The mill RUNNING at ``LOW_RPM`` on ``transport``, its probe, and the adversary (skipped on virtual)."""
+def mill(
+    request: pytest.FixtureRequest, transport: Transport, mill_pool: MillPool
+) -> Iterator[tuple[Mill, Probe, Adversary]]:
+    """The mill RUNNING at ``LOW_RPM`` on ``transport``, its probe, and the adversary (skipped on virtual).
+
+    The module's shared mill (tests/hil/mill_pool.py): reset to DISABLED at rest after each scenario,
+    restarted after a failure.
+    """
     if not transport.crosses_processes:
-        pytest.skip("the adversary is a bus node of its own: python-can's virtual bus stays inside one process")
+        pytest.skip(NEEDS_A_BUS_NODE)
+    with pooled_mill(request, mill_pool, MillKind(transport.name)) as started:
+        yield from _running(started)
+
+
+@pytest.fixture
+def own_mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[tuple[Mill, Probe, Adversary]]:
+    """Like ``mill``, started for this test alone: for the scenario that kills the service."""
+    if not transport.crosses_processes:
+        pytest.skip(NEEDS_A_BUS_NODE)
     with mill_on(transport, spawn, tmp_path) as started:
-        assert started.probe is not None
-        adversary = Adversary(started.config.bus, started.codec)
-        try:
-            started.run_at(*LOW_RPM)
-            yield started, started.probe, adversary
-        finally:
-            adversary.close()
+        yield from _running(started)
 
 
 def wait_status(mill: Mill, probe: Probe, where: Callable[[Seen], bool], after: float, what: str) -> Seen:
@@ -316,9 +342,9 @@ def test_a_second_sender_on_the_nodes_frames_trips_the_controller(
 
 
 def test_replayed_heartbeats_after_the_service_is_killed_do_not_keep_the_mill_running(
-    mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
+    own_mill: tuple[Mill, Probe, Adversary], transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    m, probe, adversary = mill
+    m, probe, adversary = own_mill
     recording = adversary.record(Heartbeat, 16, m.timeout(5.0))
     assert len(recording) == 16, "16 heartbeats: a whole turn of the alive counter"
     # In a row, so that the loop's alive counters are always in sequence: E2E cannot tell this replay from

@@ -1,9 +1,10 @@
 """The hil scenario suite (issue 7): what an operator does and what a failing machine does, over every transport.
 
-Each scenario starts the controller service (``millctl serve``) and the node
+The scenarios run the controller service (``millctl serve``) and the node
 (``python -m firmware_sim --fault-injection``) as separate processes on
 udp_multicast (inside ``tests/hil/in_netns``) or socketcan (vcan0, in the VM of
-``tests/vm/run``); the test process is a third bus node, the probe: it
+``tests/vm/run``): one pair started for consecutive scenarios and reset between
+them (tests/hil/mill_pool.py), a pair of its own for a scenario that kills one; the test process is a third bus node, the probe: it
 injects faults, plays the rogue sender and the E-stop button, and captures
 every frame with its receive time. Safety reactions are measured on that
 capture and asserted against bounds derived from the config
@@ -46,6 +47,8 @@ from millctl.protocol import (
     SimFaultCode,
 )
 from millctl.safety import SpeedPoint
+from tests.hil.conftest import pooled_mill
+from tests.hil.mill_pool import MillKind
 from tests.hil.scenario_support import (
     STANDSTILL_RPM,
     Mill,
@@ -64,6 +67,7 @@ from tests.hil.scenario_support import (
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
+    from tests.hil.mill_pool import MillPool
 
 pytestmark = pytest.mark.hil
 
@@ -83,15 +87,31 @@ STALL_RPM = (160.0, 500.0)
 
 
 @pytest.fixture
-def mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[Mill]:
-    """The service and the node on ``transport``, seen by the controller (DISABLED)."""
-    with mill_on(transport, spawn, tmp_path) as started:
+def mill(request: pytest.FixtureRequest, transport: Transport, mill_pool: MillPool) -> Iterator[Mill]:
+    """The service and the node on ``transport``, DISABLED at rest: the module's shared one (tests/hil/mill_pool.py)."""
+    with pooled_mill(request, mill_pool, MillKind(transport.name)) as shared:
+        yield shared
+
+
+@pytest.fixture
+def fresh_mill(request: pytest.FixtureRequest, transport: Transport, mill_pool: MillPool) -> Iterator[Mill]:
+    """Like ``mill``, newly started: the start-up scenario sees the processes start (later ones may share it)."""
+    with pooled_mill(request, mill_pool, MillKind(transport.name), fresh=True) as started:
         yield started
 
 
 @pytest.fixture
-def bus_mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[Mill]:
+def bus_mill(request: pytest.FixtureRequest, transport: Transport, mill_pool: MillPool) -> Iterator[Mill]:
     """Like ``mill``, for scenarios that need separate processes and the probe (skipped on virtual)."""
+    if not transport.crosses_processes:
+        pytest.skip(NEEDS_PROBE)
+    with pooled_mill(request, mill_pool, MillKind(transport.name)) as shared:
+        yield shared
+
+
+@pytest.fixture
+def own_bus_mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[Mill]:
+    """Like ``bus_mill``, started for this test alone: for the scenarios that kill or restart a process."""
     if not transport.crosses_processes:
         pytest.skip(NEEDS_PROBE)
     with mill_on(transport, spawn, tmp_path) as started:
@@ -130,8 +150,9 @@ def stop_duration_bound_s(mill: Mill, rotary_rpm: float, vibration_rpm: float) -
 
 
 def test_startup_arm_ramp_steady_milling_and_controlled_stop(
-    mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
+    fresh_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    mill = fresh_mill
     start = mill.status()
     assert start["node_state"] == "DISABLED"  # safe by default: nothing moves before ARM
     assert max(abs(start["measured_rotary_rpm"]), abs(start["measured_vibration_rpm"])) < STANDSTILL_RPM
@@ -220,12 +241,13 @@ def refused_since(count_before: int) -> Callable[[Seen], bool]:
 
 
 @pytest.fixture
-def rogue_mill(transport: Transport, spawn: Spawner, tmp_path: Path) -> Iterator[Mill]:
+def rogue_mill(request: pytest.FixtureRequest, transport: Transport, mill_pool: MillPool) -> Iterator[Mill]:
     """Like ``bus_mill``, with the drives' rates dilated in the VM like its periods (``write_config``)."""
     if not transport.crosses_processes:
         pytest.skip(NEEDS_PROBE)
-    with mill_on(transport, spawn, tmp_path, dilate_drives=True) as started:
-        yield started
+    kind = MillKind(transport.name, dilate_drives=bound_scale() > 1.0)  # on the host the same mill as bus_mill's
+    with pooled_mill(request, mill_pool, kind) as shared:
+        yield shared
 
 
 def raw_jump_target(mill: Mill) -> tuple[float, float]:
@@ -327,9 +349,9 @@ def test_vibration_stall_trips_and_stops_inside_the_envelope(
 
 
 def test_controller_killed_node_stops_motors_and_heater_within_the_watchdog_bound(
-    bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
+    own_bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    mill, probe = bus_mill, probe_of(bus_mill)
+    mill, probe = own_bus_mill, probe_of(own_bus_mill)
     mill.run_at(*LOW_RPM)
     mill.client.set_furnace(60.0)
     probe.wait_first(
@@ -359,9 +381,9 @@ def test_controller_killed_node_stops_motors_and_heater_within_the_watchdog_boun
 
 
 def test_node_killed_and_restarted_mid_run_controller_trips_and_nothing_runs_without_arm(
-    bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
+    own_bus_mill: Mill, transport: Transport, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    mill, probe = bus_mill, probe_of(bus_mill)
+    mill, probe = own_bus_mill, probe_of(own_bus_mill)
     mill.run_at(*LOW_RPM)
 
     t_kill = probe.now()
