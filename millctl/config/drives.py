@@ -3,7 +3,10 @@
 Split from :mod:`millctl.config.models` (which re-exports every name here);
 the CiA 402 parts are checked when read: node IDs in 1–127 and distinct,
 scalings finite and > 0, an EDS that exists and parses
-(docs/deployment.md#standard-cia-402-drives).
+(docs/deployment.md#standard-cia-402-drives); a furnace beside them
+(``furnace = "millbus"``) needs its own channel, ``[drives.furnace_bus]``,
+which is not the drives' ``[bus]`` (docs/deployment.md, "A furnace beside the
+drives: a second CAN channel").
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from millctl.clock import ManualClock
 from millctl.config import MillConfig, load_config
 from millctl.config.models import Bus
 from millctl.controller import Controller, ControllerState, Event
-from millctl.protocol import FaultFlag, NodeState
+from millctl.protocol import FaultFlag, NodeState, NodeStatus, default_codec
 
 CONFIG = "config/mill-cia402-furnace.toml"
 S = ControllerState
@@ -38,8 +38,8 @@ class FurnaceRig:
         self.clock = ManualClock()
         self.events: list[Event] = []
         self.buses = [can.Bus(interface="virtual", channel=drives_channel) for _ in range(2)]
-        self.buses.append(can.Bus(interface="virtual", channel=furnace_bus.channel))
-        mill_bus, controller_bus, node_furnace_bus = self.buses
+        self.buses += [can.Bus(interface="virtual", channel=furnace_bus.channel) for _ in range(2)]
+        mill_bus, controller_bus, node_furnace_bus, self.furnace_probe = self.buses
         self.sim = Cia402FurnaceMill(self.config, mill_bus, self.clock, furnace_bus=node_furnace_bus)
         self.controller = Controller(self.config, controller_bus, self.clock, listener=self.events.append)
         self.furnace_ticks = True
@@ -157,3 +157,15 @@ def test_a_reset_after_a_cleared_furnace_fault_comes_back_disabled(rig: FurnaceR
     rig.controller.reset()
     assert rig.run(10.0, lambda: rig.controller.state is S.DISABLED), rig.controller.trip_cause
     assert rig.sim.furnace_node.state is NodeState.DISABLED and not rig.sim.furnace_node.fault_bits
+
+
+def test_corrupt_furnace_frames_trip_the_mill_on_e2e(rig: FurnaceRig) -> None:
+    rig.arm()
+    codec = default_codec()
+    for counter in range(rig.config.interlock.e2e_error_limit + 1):  # a NodeStatus whose CRC does not match
+        frame = codec.encode(NodeStatus(NodeState.ARMED), counter)
+        frame.data[-1] ^= 0xFF
+        rig.furnace_probe.send(frame)
+    assert rig.run(1.0, lambda: rig.controller.state is S.TRIPPED)
+    cause = rig.controller.trip_cause
+    assert "furnace node on virtual:" in cause and "E2E_LINK" in cause, cause
