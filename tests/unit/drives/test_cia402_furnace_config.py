@@ -88,3 +88,19 @@ def test_a_bad_furnace_channel_is_refused_naming_its_field(tmp_path: Path) -> No
 def test_cold_milling_is_unchanged() -> None:
     config = load_config(COLD).config
     assert config.drives.furnace is FurnaceBackend.NONE and config.drives.furnace_bus is None
+
+
+def test_serve_sim_moves_the_furnace_channel_to_a_private_virtual_one_too() -> None:
+    from millctl.cli.service_cmd import simulated
+
+    loaded = simulated(load_config(WITH_FURNACE))
+    bus, furnace = loaded.config.bus, loaded.config.drives.furnace_bus
+    assert furnace is not None and furnace.interface == "virtual" and bus.interface == "virtual"
+    assert furnace.channel.startswith("millctl-sim-furnace-") and furnace.channel != bus.channel
+
+
+def test_the_furnace_only_node_needs_a_furnace_channel(caplog: pytest.LogCaptureFixture) -> None:
+    from firmware_sim.__main__ import main
+
+    assert main(["--config", "config/mill.toml", "--furnace-only"]) == 1
+    assert "--furnace-only needs [drives.furnace_bus]" in caplog.text
