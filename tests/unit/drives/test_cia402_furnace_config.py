@@ -104,3 +104,13 @@ def test_the_furnace_only_node_needs_a_furnace_channel(caplog: pytest.LogCapture
 
     assert main(["--config", "config/mill.toml", "--furnace-only"]) == 1
     assert "--furnace-only needs [drives.furnace_bus]" in caplog.text
+
+
+@pytest.mark.parametrize("config", ["config/mill.toml", str(WITH_FURNACE)])
+def test_the_heated_demo_passes_the_recipe_check_on_the_mills_with_a_furnace(
+    config: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from millctl.cli import main
+
+    code = main(["--config", config, "recipe", "check", "config/recipes/heated/demo-heated.toml"])
+    assert code == 0, capsys.readouterr().err
