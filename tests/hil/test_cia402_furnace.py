@@ -150,7 +150,10 @@ def test_a_heated_step_warms_the_furnace_while_the_drives_turn(mill: FurnaceMill
 
     def warm() -> dict[str, Any] | None:
         status = mill.status()
-        return status if status["furnace_temp_c"] >= start_c + HEAT_BY_C else None
+        if status["state"] == "TRIPPED":
+            pytest.fail(f"tripped while the furnace heated: {status['trip_cause']}")
+        temp_c = status["furnace_temp_c"]
+        return status if temp_c is not None and temp_c >= start_c + HEAT_BY_C else None
 
     warmed = wait_for(warm, mill.timeout(60.0), f"the furnace {HEAT_BY_C} °C above {start_c:.1f} °C")
     assert warmed["state"] == "RUNNING", warmed["trip_cause"]
