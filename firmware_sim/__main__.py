@@ -16,6 +16,7 @@ import typing
 from collections.abc import Sequence
 from types import FrameType
 
+from firmware_sim.furnace_node import FurnaceNode
 from firmware_sim.node import Node
 from millctl.clock import MonotonicClock
 from millctl.config import load_config
@@ -46,6 +47,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--config", required=True, help="mill configuration file (TOML)")
     parser.add_argument("--interface", help="python-can interface, overrides [bus].interface")
     parser.add_argument("--channel", help="bus channel (e.g. vcan0), overrides [bus].channel")
+    parser.add_argument(
+        "--furnace-only", action="store_true",
+        help="the millbus node in its furnace-only mode on [drives.furnace_bus] (CiA 402 drives with "
+        'furnace = "millbus"); --interface/--channel override that bus',
+    )
     parser.add_argument("--fault-injection", action="store_true", help="honour SimFault frames (0x700–0x7FF)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and injected faults")
     parser.add_argument(
@@ -127,7 +133,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
         config = load_config(args.config).config
-        bus_config = _bus_config(config.bus, args.interface, args.channel)
+        configured = config.drives.furnace_bus if args.furnace_only else config.bus
+        if configured is None:
+            log.error('--furnace-only needs [drives.furnace_bus] (backend = "cia402", furnace = "millbus")')
+            return int(ExitCode.INVALID_INPUT)
+        bus_config = _bus_config(configured, args.interface, args.channel)
         bus = open_bus(bus_config)
     except MillctlError as exc:
         log.error("%s", exc)
@@ -144,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = _Stop()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
-    if config.drives.backend is DriveBackend.CIA402:
+    if config.drives.backend is DriveBackend.CIA402 and not args.furnace_only:
         if estop_bus is not None:
             estop_bus.shutdown()
         from firmware_sim.cia402.process import run_cia402  # canopen only for this backend (issue 36, part 5)
@@ -156,7 +166,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             estop_bus.shutdown()
         log.error("--lie-readback needs CiA 402 drives ([drives] backend = \"cia402\")")
         return int(ExitCode.INVALID_INPUT)
-    node = Node(
+    node = (FurnaceNode if args.furnace_only else Node)(
         config, bus, MonotonicClock(), fault_injection=args.fault_injection, seed=args.seed, estop_bus=estop_bus
     )
     try:

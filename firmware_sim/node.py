@@ -64,6 +64,9 @@ class IllegalNodeTransition(InterlockError):
 class Node:
     """The simulated drive-and-furnace node on one CAN bus (times in s, speeds in rpm)."""
 
+    UNSENT: tuple[type[MillMessage], ...] = ()
+    """Periodic frames this node does not send (the furnace-only node: no drives, no physics)."""
+
     def __init__(
         self,
         config: MillConfig,
@@ -455,7 +458,7 @@ class Node:
     def _transmit(self, now: float, dt: float) -> None:
         frames = self.faults.babble(dt)
         for kind in self.schedule.due(now):
-            if kind is PhysicsTelemetry and self.faults.silent:
+            if kind in self.UNSENT or (kind is PhysicsTelemetry and self.faults.silent):
                 continue
             counter = self._counters.get(kind)
             frames.append(self.codec.encode(self._frame(kind), counter.next() if counter is not None else 0))

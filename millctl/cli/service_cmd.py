@@ -53,7 +53,12 @@ def simulated(loaded: LoadedConfig) -> LoadedConfig:
 
     config = loaded.config
     records = service_paths(loaded).records_dir
+    drives = config.drives
+    if drives.furnace_bus is not None:  # the furnace node's channel too (CiA 402 drives with a furnace)
+        drives = drives.model_copy(update={"furnace_bus": Bus(interface="virtual",
+                                                              channel=f"millctl-sim-furnace-{os.getpid()}")})
     sim = config.model_copy(update={
+        "drives": drives,
         "bus": Bus(interface="virtual", channel=f"millctl-sim-{os.getpid()}"),
         "service": config.service.model_copy(update={"records_dir": f"{records}-sim", "tcp_port": 0}),
     })

@@ -3,7 +3,10 @@
 Split from :mod:`millctl.config.models` (which re-exports every name here);
 the CiA 402 parts are checked when read: node IDs in 1–127 and distinct,
 scalings finite and > 0, an EDS that exists and parses
-(docs/deployment.md#standard-cia-402-drives).
+(docs/deployment.md#standard-cia-402-drives); a furnace beside them
+(``furnace = "millbus"``) needs its own channel, ``[drives.furnace_bus]``,
+which is not the drives' ``[bus]`` (docs/deployment.md, "A furnace beside the
+drives: a second CAN channel").
 """
 
 from __future__ import annotations
@@ -16,6 +19,9 @@ from typing import Annotated
 from pydantic import AfterValidator, Field, field_validator, model_validator
 
 from millctl.config.base import StrictModel as _Strict
+from millctl.config.bus import Bus
+
+FURNACE_DOCS = "docs/deployment.md#a-furnace-beside-the-drives-a-second-can-channel"
 
 
 class DriveBackend(enum.StrEnum):
@@ -40,7 +46,9 @@ class FurnaceBackend(enum.StrEnum):
     """Where the furnace is on a CiA 402 mill: the millbus furnace node, or none (cold milling)."""
 
     MILLBUS = "millbus"
+    """The millbus node in its furnace-only mode, on a CAN channel of its own (``[drives.furnace_bus]``)."""
     NONE = "none"
+    """No furnace: cold milling."""
 
 
 SCALING_MAX = 1e9
@@ -146,17 +154,15 @@ class Drives(_Strict):
     controller_node_id: _NodeId = 1
     """The controller's CANopen node ID (CiA 402 backend): its heartbeat is sent at 0x700 + this."""
     furnace: FurnaceBackend = FurnaceBackend.NONE
-    """CiA 402 backend: the furnace beside the drives; only "none" (cold milling) is driven today."""
+    """CiA 402 backend: the furnace beside the drives, "millbus" (its own channel) or "none" (cold milling)."""
+    furnace_bus: Bus | None = None
+    """CiA 402 backend with ``furnace = "millbus"``: the CAN channel of the millbus furnace node (not the drives')."""
 
     @model_validator(mode="after")
     def _cia402_complete(self) -> Drives:
+        self._furnace_channel()
         if self.backend is not DriveBackend.CIA402:
             return self
-        if self.furnace is not FurnaceBackend.NONE:
-            raise ValueError(
-                f"furnace = \"{self.furnace.value}\" beside CiA 402 drives is not driven by millctl: use "
-                "\"none\" (cold milling; docs/deployment.md#a-furnace-beside-the-drives-not-yet says why)"
-            )
         ids: dict[int, str] = {self.controller_node_id: "drives.controller_node_id"}
         for motor in ("rotary", "vibration"):
             drive: Drive = getattr(self, motor)
@@ -173,6 +179,34 @@ class Drives(_Strict):
                 )
             ids[node_id] = f"drives.{motor}.cia402.node_id"
         return self
+
+    def _furnace_channel(self) -> None:
+        """``furnace`` and ``[drives.furnace_bus]`` agree with the backend (each refusal names the field)."""
+        if self.furnace_bus is not None and (self.backend is not DriveBackend.CIA402
+                                             or self.furnace is not FurnaceBackend.MILLBUS):
+            raise ValueError(
+                "[drives.furnace_bus] is given but the furnace has no channel of its own here (it needs "
+                "backend = \"cia402\" and furnace = \"millbus\"; with backend = \"millbus\" the furnace is "
+                f"the millbus node's, with furnace = \"none\" there is none): drop the section ({FURNACE_DOCS})"
+            )
+        if self.backend is DriveBackend.CIA402 and self.furnace is FurnaceBackend.MILLBUS and self.furnace_bus is None:
+            raise ValueError(
+                "drives.furnace = \"millbus\" beside CiA 402 drives needs [drives.furnace_bus] with the furnace "
+                "node's own interface and channel: the millbus node cannot share the drives' bus (its E-stop "
+                f"0x000 is CANopen's NMT, its NodeStatus 0x100 the TIME object; {FURNACE_DOCS})"
+            )
+
+    def check_channels(self, drives_bus: Bus) -> None:
+        """Refuse a furnace channel that is the drives' own (``[bus]``): the identifiers would clash there."""
+        furnace = self.furnace_bus
+        if furnace is None:
+            return
+        same_port = furnace.options.get("port") == drives_bus.options.get("port")
+        if furnace.interface == drives_bus.interface and furnace.channel == drives_bus.channel and same_port:
+            raise ValueError(
+                f"drives.furnace_bus.channel = {furnace.channel!r} on {furnace.interface} is the drives' own "
+                f"bus ([bus]): the furnace node needs a second CAN channel ({FURNACE_DOCS})"
+            )
 
 
 __all__ = [

@@ -362,6 +362,7 @@ class MillConfig(_Strict):
             if name not in self.materials:
                 known = ", ".join(sorted(self.materials)) or "none"
                 raise ValueError(f"{where} = {name!r} is not a defined material (defined: {known})")
+        self.drives.check_channels(self.bus)  # the furnace's channel is not the drives' own
         return self
 
     @property

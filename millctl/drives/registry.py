@@ -12,11 +12,11 @@ from millctl.safety import Envelope
 
 
 def open_drives(config: MillConfig, bus: can.BusABC, codec: Codec, envelope: Envelope) -> DrivesBackend:
-    """The configured backend on ``bus`` (CiA 402 imports python-canopen only here)."""
+    """The configured backend on ``bus`` (CiA 402 imports python-canopen only here; it opens the furnace's bus)."""
     if config.drives.backend is DriveBackend.CIA402:
         from millctl.drives.cia402 import Cia402Drives
 
-        return Cia402Drives(config, bus, envelope)
+        return Cia402Drives(config, bus, envelope, codec=codec)
     return MillbusDrives(bus, codec)
 
 

@@ -7,7 +7,10 @@ notifier thread of its own: the tick drains the bus through the boundary's
 their age, and the SDO client (on the worker of :mod:`.sdo_jobs`) gets its
 answers from there. The two drives are reported to the controller as one
 node (:mod:`.report`), so the controller judges them exactly as it judges the
-millbus node: same confirmations, same escalations, same trips.
+millbus node: same confirmations, same escalations, same trips. With
+``furnace = "millbus"`` the millbus furnace node is on a second CAN channel
+(:mod:`.furnace_link`): every command, E-stop, heartbeat and setpoint goes to
+it too, and its reports are merged into that one node (``has_furnace``).
 """
 
 from __future__ import annotations
@@ -20,13 +23,26 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import can
 import canopen
 
-from millctl.config.models import Cia402Mode, MillConfig
+from millctl.config.models import Cia402Mode, FurnaceBackend, MillConfig
 from millctl.drives.base import DriveInfo, DrivesBackend, DrivesBatch, LimitsState
+from millctl.drives.cia402.furnace_link import FurnaceLink
 from millctl.drives.cia402.limits import drive_limits
 from millctl.drives.cia402.report import DriveLink, Intent, NodeReport
 from millctl.drives.cia402.sdo_jobs import PRODUCER_HEARTBEAT_MS, start_up, write_all
 from millctl.drives.cia402.state402 import PowerMachine
-from millctl.protocol import CommandCode, EStopSource, FaultFlag
+from millctl.protocol import (
+    Codec,
+    Command,
+    CommandCode,
+    EStop,
+    EStopSource,
+    FaultFlag,
+    Heartbeat,
+    MillMessage,
+    Setpoints,
+    default_codec,
+    open_bus,
+)
 from millctl.protocol import ControllerState as WireState
 from millctl.safety import Envelope, RampPlanner, SpeedPoint, Trajectory
 
@@ -52,7 +68,9 @@ class Cia402Drives(DrivesBackend):
     e2e = False  # CANopen carries no counter or CRC (docs/safety.md#cia-402-drives)
     has_furnace = False
 
-    def __init__(self, config: MillConfig, bus: can.BusABC, envelope: Envelope) -> None:
+    def __init__(self, config: MillConfig, bus: can.BusABC, envelope: Envelope, *,
+                 furnace_bus: can.BusABC | None = None, codec: Codec | None = None) -> None:
+        """``furnace_bus``: the furnace node's bus (None: opened from ``[drives.furnace_bus]`` when configured)."""
         super().__init__(bus)
         self.config = config
         self.envelope = envelope
@@ -79,6 +97,14 @@ class Cia402Drives(DrivesBackend):
             self.network.subscribe(foreign, self._on_foreign)
         self.report = NodeReport(list(self.links.values()), interlock.command_confirm_s,
                                  RampPlanner.from_config(config, envelope))
+        self.furnace: FurnaceLink | None = None
+        self._owns_furnace_bus = False
+        if drives.furnace is FurnaceBackend.MILLBUS and drives.furnace_bus is not None:
+            self._owns_furnace_bus = furnace_bus is None
+            self.furnace = FurnaceLink(furnace_bus if furnace_bus is not None else open_bus(drives.furnace_bus),
+                                       drives.furnace_bus, codec or default_codec(), interlock)
+            self.report.furnace = self.furnace
+            self.has_furnace = True
         self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="cia402-sdo")
         self._startup: Future[list[str]] | None = None
         self._limits: Future[str] | None = None
@@ -98,21 +124,30 @@ class Cia402Drives(DrivesBackend):
             if frame.is_extended_id or frame.is_remote_frame:
                 continue
             self.network.notify(frame.arbitration_id, bytearray(frame.data), now_s)
-        return DrivesBatch(self.report.emit(now_s), batch.error_frames)
+        furnace = self.furnace.drain(now_s) if self.furnace is not None else []
+        return DrivesBatch(self.report.emit(now_s) + furnace, batch.error_frames)
 
     def _on_foreign(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """A frame only the controller sends, heard on the bus: another sender (SAFETY 17 on CANopen)."""
         self.report.second_sender(can_id, bytes(data))
 
     def _describe(self) -> list[DriveInfo]:
-        return [link.info(self.report.now_s) for link in self.links.values()]
+        furnace = [self.furnace.info(self.report.now_s)] if self.furnace is not None else []
+        return [link.info(self.report.now_s) for link in self.links.values()] + furnace
 
     def fault_detail(self) -> str:
         """The first cause the drives' report latched."""
         return self.report.cause
 
     # -- sending
+    def _to_furnace(self, message: MillMessage) -> None:
+        """Send to the furnace node too (a failed send is logged, and never keeps a frame from the drives)."""
+        if self.furnace is not None:
+            link = self.furnace
+            self._guarded(f"furnace node {type(message).__name__}", lambda: link.send(message))
+
     def _command(self, code: CommandCode) -> None:
+        self._to_furnace(Command(code))
         now = self.report.now_s
         if code is CommandCode.ARM:
             self.report.intent = Intent.ENABLED
@@ -126,15 +161,19 @@ class Cia402Drives(DrivesBackend):
         self._send_rpdos(now)
 
     def _estop(self, source: EStopSource) -> None:
+        self._to_furnace(EStop(source))
         now = self.report.now_s
         self.report.estop(now)
         self._steer(now)
         self._send_rpdos(now)
 
     def _heartbeat(self, state: WireState, challenge: int) -> None:
+        if self.furnace is not None:  # the furnace node's own challenge, not the merged report's
+            self._to_furnace(Heartbeat(state, self.furnace.challenge))
         self.network.send_message(0x700 + self.controller_id, bytes([NMT_OPERATIONAL]))
 
     def _setpoints(self, speeds: SpeedPoint, furnace_c: float, heater_on: bool) -> None:
+        self._to_furnace(Setpoints(rotary_rpm=0.0, vibration_rpm=0.0, furnace_c=furnace_c, heater_on=heater_on))
         self.report.setpoints(speeds.omega_r_rpm, speeds.omega_v_rpm)
         self._send_rpdos(self.report.now_s)
 
@@ -222,8 +261,13 @@ class Cia402Drives(DrivesBackend):
         return self._limits.result()
 
     def close(self) -> None:
-        """Stop the SDO worker (a transfer under way ends at its timeout); the bus is the caller's."""
+        """Stop the SDO worker (a transfer under way ends at its timeout); the bus is the caller's.
+
+        The furnace node's bus is shut down when this backend opened it.
+        """
         self._jobs.shutdown(wait=False, cancel_futures=True)
+        if self.furnace is not None and self._owns_furnace_bus:
+            self.furnace.bus.shutdown()
 
 
 __all__ = ["Cia402Drives"]

@@ -22,6 +22,7 @@ import canopen
 
 from millctl.config.models import Cia402Drive, Cia402Mode, Drive
 from millctl.drives.base import DriveInfo
+from millctl.drives.cia402.furnace_link import FurnaceLink
 from millctl.drives.cia402.sdo_jobs import Identity
 from millctl.drives.cia402.state402 import (
     QUICK_STOP_OPTION,
@@ -146,6 +147,8 @@ class NodeReport:
     _challenge: int = 0
     _stop_plan: Trajectory | None = None
     _stop_start_s: float = 0.0
+    furnace: FurnaceLink | None = None
+    """The millbus furnace node on its own channel, merged into this node (None: cold milling)."""
 
     def latch(self, flag: FaultFlag, cause: str) -> None:
         """A fault: the first cause is kept, every flag added."""
@@ -202,6 +205,8 @@ class NodeReport:
         for link in self.links:
             link.emcy = ""
             link.target_units = 0
+        if self.furnace is not None:
+            self.furnace.forget()
 
     def setpoints(self, rotary_rpm: float, vibration_rpm: float) -> None:
         """The checked pair, as each drive's target (ignored unless enabled and not stopping or faulted)."""
@@ -242,7 +247,10 @@ class NodeReport:
         ]
 
     def _judge(self, now_s: float) -> None:
-        """Latch what the drives' frames say went wrong."""
+        """Latch what the drives' frames (and the furnace node's reports) say went wrong."""
+        if self.furnace is not None:
+            for flag, cause in self.furnace.faults(now_s, estop_commanded=self.estop_latched):
+                self.latch(flag, cause)
         for link in self.links:
             state = link.power.believed(now_s)
             if link.emcy:
@@ -266,10 +274,35 @@ class NodeReport:
     def _state(self) -> NodeState:
         now = self.now_s
         states = [link.power.believed(now) for link in self.links]
-        if self.estop_latched and all(s is not None and quick_stop_shown(s) for s in states):
-            self.latch(FaultFlag.ESTOP, "E-stop: both drives in quick stop")
+        furnace_shown = self.furnace is None or self.furnace.estop_shown()
+        if self.estop_latched and furnace_shown and all(s is not None and quick_stop_shown(s) for s in states):
+            self.latch(FaultFlag.ESTOP, "E-stop: both drives in quick stop" +
+                       (", the furnace node E-stopped" if self.furnace is not None else ""))
         if self.bits:
             return NodeState.FAULT
+        drives = self._drives_state(states)
+        return drives if self.furnace is None else self._with_furnace(drives)
+
+    def _with_furnace(self, drives: NodeState) -> NodeState:
+        """The drives' state merged with the furnace node's: ARMED only when both are, DISABLED when both are.
+
+        A furnace node that leaves ARMED by itself (a restart) makes the mill
+        DISABLED, which the controller trips on as for the millbus node; one
+        armed by another sender makes it ARMED, which the controller did not
+        command (docs/deployment.md#a-furnace-beside-the-drives-a-second-can-channel).
+        """
+        furnace = self.furnace.state if self.furnace is not None else None
+        moving = furnace in (NodeState.ARMED, NodeState.RUNNING, NodeState.STOPPING)
+        if self.estop_latched:
+            return drives
+        if drives is NodeState.DISABLED:
+            return NodeState.ARMED if moving and self.intent is Intent.DISABLED else NodeState.DISABLED
+        if self.intent is Intent.ENABLED and not moving:
+            return NodeState.DISABLED
+        return drives
+
+    def _drives_state(self, states: list[Power | None]) -> NodeState:
+        """Both drives as one node state (no fault latched)."""
         enabled = all(s is Power.OPERATION_ENABLED for s in states)
         if self.intent is Intent.DISABLED:
             return NodeState.ARMED if any(s is Power.OPERATION_ENABLED for s in states) else NodeState.DISABLED

@@ -17,6 +17,7 @@ from collections.abc import Callable
 import can
 
 from firmware_sim.cia402 import Cia402Mill, PowerState
+from firmware_sim.cia402.furnace_mill import Cia402FurnaceMill
 from firmware_sim.embedded import simulated_mill
 from firmware_sim.node import Node
 from millctl.clock import ManualClock
@@ -45,7 +46,8 @@ class BackendRig:
         self.events: list[Event] = []
         self._buses = [can.Bus(interface="virtual", channel=channel) for _ in range(3)]
         mill_bus, controller_bus, self.probe = self._buses
-        self.sim: Node | Cia402Mill = simulated_mill(config, mill_bus, self.clock, fault_injection=fault_injection)
+        self.sim: Node | Cia402Mill | Cia402FurnaceMill = simulated_mill(
+            config, mill_bus, self.clock, fault_injection=fault_injection)
         self.controller = Controller(config, controller_bus, self.clock, listener=self.events.append)
         self.true: list[tuple[float, float]] = []
         self.t_s: list[float] = []
