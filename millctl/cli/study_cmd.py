@@ -109,18 +109,24 @@ def _pareto_metrics(text: str | None, metrics: tuple[str, ...]) -> list[str] | N
     return names
 
 
-def _size(study: Any, runner: Any) -> tuple[int, bool]:
-    """Points to compute (a grid's pending ones; an optimiser's population per generation) and whether they simulate."""
+def _size(study: Any, runner: Any) -> tuple[int, float]:
+    """Points to compute (a grid's pending ones; an optimiser's population per generation) and one's serial cost (s).
+
+    The cost follows the study's levels, revolutions and cam phases (:func:`millctl.studies.backends.point_cost_s`),
+    so that workers start only where the benchmark's rule N·c ≥ 4·w·S says they gain.
+    """
+    from millctl.studies.backends import point_cost_s
     from millctl.studies.metrics import METRICS
     from millctl.studies.run import grid_points
 
-    simulated = any(METRICS[n].level == "c" for n in runner.metrics)
+    m = study.metrics
+    cost = point_cost_s({METRICS[n].level for n in runner.metrics}, m.revolutions, m.cam_phases, m.slip_phases)
     if study.is_optimisation:
         settings = study.optimiser
         population = (settings.population if settings is not None else 8) * len(study.parameters)
-        return population, simulated
+        return population, cost
     pending = [p for p in grid_points(study) if runner.store is None or _key(p) not in runner.store.rows]
-    return len(pending), simulated
+    return len(pending), cost
 
 
 def _key(params: dict[str, Any]) -> str:

@@ -206,35 +206,63 @@ class DaskBackend:
         self.close()
 
 
-POINT_S = {"array": 2e-5, "simulated": 3e-2}
-"""Nominal serial cost of a point (s): level (a, b) by the array path, level (c) (bench/study.py measures both)."""
+POINT_S = {"a": 5e-5, "b_sample": 6e-6, "s_phase": 5e-2, "c_point": 3e-4, "c_revolution": 1.05e-3}
+"""Nominal serial cost of a point through the runner (s, wall, warm) by level: level (a) whole; level (b)
+per cam-phase sample; level (s) per slip-ridden phase; level (c) a point plus one per simulated
+revolution. From one serial run of bench/study.py's studies (level (c) 1.4 ms a point at one revolution,
+4.5 ms at four; level (s) 0.45 s a point at 8 phases; level (b) integrated 2.2e-4 s a point at 37 samples)."""
+INTEGRATED_SAMPLES = 40
+"""Level (b) integrated over the cam phase: the samples a point takes on the benchmark's 100 × 100 map
+(bench/study.py, "Where the integrated map's time goes": 37.2 a point), rounded up."""
 WORKER_STARTUP_S = 3.0
 """Nominal start-up of a local pool, its workers' imports and compiled code loaded (s; bench/study.py measures it)."""
 
 
-def worth_workers(points: int, simulated: bool, workers: int) -> bool:
-    """Whether ``workers`` workers keep ≥ 80 % efficiency on ``points`` points: N·c ≥ 4·w·S.
+def point_cost_s(
+    levels: Iterable[str], revolutions: float = 4.0, cam_phases: int | None = None, slip_phases: int = 8
+) -> float:
+    """c: the nominal serial cost of one point (s) of a study with metrics of ``levels`` ("a", "b", "s", "c").
 
-    With N points of serial cost c and a pool that takes S to start, the efficiency is
-    N c / (w S + N c), ≥ 0.8 exactly when N c ≥ 4 w S: a level-(c) study pays from a few
-    thousand points, a level-(a, b) one only past ~10⁶ (docs/benchmarks.md, section 4).
+    Level (b) costs its K samples (``cam_phases``; None: integrated, :data:`INTEGRATED_SAMPLES`), level (s)
+    its ``slip_phases`` rides and level (c) its ``revolutions`` of simulated time, at :data:`POINT_S`.
     """
-    cost = POINT_S["simulated" if simulated else "array"]
-    return workers > 1 and points * cost >= 4.0 * workers * WORKER_STARTUP_S
+    wanted = set(levels)
+    cost = POINT_S["a"]
+    if "b" in wanted:
+        cost += POINT_S["b_sample"] * (INTEGRATED_SAMPLES if cam_phases is None else cam_phases)
+    if "s" in wanted:
+        cost += POINT_S["s_phase"] * slip_phases
+    if "c" in wanted:
+        cost += POINT_S["c_point"] + POINT_S["c_revolution"] * revolutions
+    return cost
+
+
+def worth_workers(points: int, point_s: float, workers: int, startup_s: float = WORKER_STARTUP_S) -> bool:
+    """Whether ``workers`` workers keep ≥ 80 % efficiency on ``points`` points of cost ``point_s``: N·c ≥ 4·w·S.
+
+    With N points of serial cost c (:func:`point_cost_s`) and a pool that takes S to start, the efficiency
+    is N c / (w S + N c), ≥ 0.8 exactly when N c ≥ 4 w S — the rule bench/study.py prints and sizes its
+    parallel studies by: a level-(c) study pays from a few thousand points, a level-(a, b) one only past
+    ~10⁵ (docs/studies.md).
+    """
+    return workers > 1 and points * point_s >= 4.0 * workers * startup_s
 
 
 def make_backend(
-    workers: int | None = None, scheduler: str | None = None, points: int | None = None, simulated: bool = True
+    workers: int | None = None,
+    scheduler: str | None = None,
+    points: int | None = None,
+    point_s: float = POINT_S["c_point"] + POINT_S["c_revolution"],
 ) -> Backend:
     """The backend for the command line: Dask when a scheduler is named, else local processes.
 
-    Without ``workers``: every local core when the study (``points``, ``simulated``: has level-(c)
-    metrics) is large enough to gain from them (:func:`worth_workers`), else this process alone.
+    Without ``workers``: every local core when the study (``points`` of serial cost ``point_s``,
+    :func:`point_cost_s`) is large enough to gain from them (:func:`worth_workers`), else this process alone.
     """
     if scheduler:
         return DaskBackend(scheduler)
     count = local_cores() if workers is None else workers
-    if workers is None and points is not None and not worth_workers(points, simulated, count):
+    if workers is None and points is not None and not worth_workers(points, point_s, count):
         count = 1
     return SerialBackend() if count == 1 else LocalBackend(count)
 
@@ -255,5 +283,6 @@ __all__ = [
     "batched",
     "local_cores",
     "make_backend",
+    "point_cost_s",
     "worth_workers",
 ]

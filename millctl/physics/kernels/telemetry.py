@@ -74,15 +74,17 @@ def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
 def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
     """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never).
 
+    The second margin is searched only up to the first one's onset: a later zero of it cannot be the first.
     ``rows``: a (2, trig columns) work array; ``st``: a zeroed (1, state columns) one (unused by the search).
     """
     tr = _slip_rows(p, theta0, mu, rows)
+    if _trig(tr, 0, 0.0, 0, 1.0) <= 0.0 or _trig(tr, 1, 0.0, 0, 1.0) <= 0.0:
+        return 0.0
     onset = math.inf
     for r in range(2):
-        if _trig(tr, r, 0.0, 0, 1.0) <= 0.0:
-            return 0.0
-        if t_end > 0.0:
-            onset = min(onset, _falling_zero_windowed(p, st, tr, r, 1.0, 0.0, t_end))
+        horizon = min(t_end, onset)
+        if horizon > 0.0:
+            onset = min(onset, _falling_zero_windowed(p, st, tr, r, 1.0, 0.0, horizon))
     return onset
 
 

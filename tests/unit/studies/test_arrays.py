@@ -96,14 +96,20 @@ def test_arrays_of_unequal_length_are_refused(config: MillConfig) -> None:
 
 
 def test_workers_are_used_only_where_they_keep_80_percent_efficiency() -> None:
-    from millctl.studies.backends import POINT_S, WORKER_STARTUP_S, SerialBackend, make_backend, worth_workers
+    from millctl.studies.backends import WORKER_STARTUP_S, SerialBackend, make_backend, point_cost_s, worth_workers
 
     # N·c ≥ 4·w·S: the smallest study that pays, on either side of it
-    simulated = math.ceil(4 * 2 * WORKER_STARTUP_S / POINT_S["simulated"])
-    assert worth_workers(simulated, True, 2) and not worth_workers(simulated - 1, True, 2)
-    assert not worth_workers(100 * 100, False, 2)  # a level-(a, b) map: ~0.2 s of work, seconds of start-up
-    assert not worth_workers(10**9, True, 1)
-    assert isinstance(make_backend(None, None, 100 * 100, simulated=False), SerialBackend)
+    c = point_cost_s({"c"}, revolutions=1.0)
+    smallest = math.ceil(4 * 2 * WORKER_STARTUP_S / c)
+    assert worth_workers(smallest, c, 2) and not worth_workers(smallest - 1, c, 2)
+    assert not worth_workers(10**9, c, 1)
+    # the cost follows the study: more revolutions, fewer points to pay; a level-(a, b) map of 100 × 100 never
+    assert point_cost_s({"c"}, revolutions=4.0) > 2.5 * c
+    assert worth_workers(smallest // 2, point_cost_s({"c"}, revolutions=4.0), 2)
+    assert point_cost_s({"a", "b"}) > point_cost_s({"a", "b"}, cam_phases=4) > point_cost_s({"a"})
+    assert not worth_workers(100 * 100, point_cost_s({"a", "b"}), 2)
+    assert isinstance(make_backend(None, None, 100 * 100, point_cost_s({"a", "b"})), SerialBackend)
+    assert isinstance(make_backend(None, None, smallest - 1, c), SerialBackend)
 
 
 def test_structural_constraints_break_the_same_points_as_the_point_path(config: MillConfig) -> None:
