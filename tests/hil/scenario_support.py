@@ -16,13 +16,9 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
-import re
 import secrets
 import signal
-import socket
-import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -31,62 +27,54 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import can
 import pytest
-from pydantic import BaseModel
 
 from millctl.client import DEFAULT_TIMEOUT_S, Client
 from millctl.config import load_config
-from millctl.config.loader import packaged_file
-from millctl.config.models import Bus, Furnace, Interlock, MillConfig, Timing
+from millctl.config.models import MillConfig
 from millctl.controller.tracking import SAFETY_RELEVANT
 from millctl.errors import MillctlError
 from millctl.protocol import (
     Codec,
-    Command,
-    CommandCode,
-    Decoded,
     DriveTelemetry,
-    FaultCode,
     MillMessage,
-    NodeState,
     NodeStatus,
-    ProtocolError,
-    SimFault,
-    SimFaultCode,
     default_codec,
-    open_bus,
 )
-from millctl.protocol.e2e import E2EReceiver
 from millctl.safety import Envelope
-from tests.hil.conftest import IN_VM, REPO
-from tests.support.pace import slowdown_now, time_scale
+from tests.hil.conftest import IN_VM
+from tests.hil.probe import (  # re-exported: the scenarios import them from here
+    POLL_S,
+    Probe,
+    Seen,
+    bound_scale,
+    deepen_receive_queue,
+    is_command,
+    is_kind,
+    is_status,
+    sequence_limit_reached_at,
+)
+from tests.hil.scenario_config import (  # re-exported
+    BACKEND_CONFIGS,
+    upper_bound,
+    vm_scaled,
+    write_config,
+)
+from tests.support.pace import slowdown_now
 
 if TYPE_CHECKING:
     import subprocess
 
     from tests.hil.conftest import Spawner, Transport
 
-SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
-"""Linux's ``SO_RCVBUFFORCE`` (33; Python names it only where the platform headers do)."""
-
-M = TypeVar("M", bound=MillMessage)
 T = TypeVar("T")
 
 STANDSTILL_RPM = 1.0
 """Measured speeds below this count as standstill (rpm), as in the controller."""
 SCHEDULING_ALLOWANCE_S = 0.05
 """Added to every reaction bound on the host (s): late wake-ups of the Python processes in the chain."""
-POLL_S = 0.02
-"""How often the wait helpers look again (s), times ``bound_scale()``: in the VM each status request costs the
-service (whose control loop shares its process) the measured factor times the host's CPU, so polling at the
-host's rate would load the process under test that much more."""
 
 
 # --- bounds ---------------------------------------------------------------------------------------------------
-
-
-def bound_scale() -> float:
-    """The factor on every safety bound: ``time_scale()`` inside the VM, 1 on the host (the tight bounds)."""
-    return time_scale() if IN_VM else 1.0
 
 
 def load_scale() -> float:
@@ -192,316 +180,6 @@ def report_timing(
     if path := os.environ.get("MILLCTL_HIL_TIMINGS"):
         with open(path, "a", encoding="utf-8") as out:
             out.write(json.dumps(record) + "\n")
-
-
-# --- config ---------------------------------------------------------------------------------------------------
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    return json.dumps(value)
-
-
-VM_SCALED_KEYS: dict[str, type[BaseModel]] = {
-    "watchdog_timeout_s": Timing,
-    "challenge_lifetime_s": Timing,
-    "setpoint_period_s": Timing,
-    "min_setpoint_expiry_s": Timing,
-    "min_stale_s": Interlock,
-    "startup_grace_s": Interlock,
-    "command_confirm_s": Interlock,
-    "command_repeat_s": Interlock,
-    "setpoint_refresh_s": Furnace,
-}
-"""Periods and timeouts of the config multiplied by the VM's measured slowdown there (and their config section).
-
-Python under emulation runs many times slower (``tests/vm/run`` measures how much), so it cannot
-meet the host's periods: frames arrive in bursts, and a setpoint step that the node allows per
-``setpoint_period_s`` is refused when two frames arrive together; the stale, refresh, start-up
-grace and challenge bounds would expire between two slow ticks. Scaling them all by one factor
-keeps their ratios. A scaled value is held at its field's upper bound in the config model (e.g.
-``setpoint_refresh_s`` ≤ 60 s), so that the config stays valid at any factor.
-"""
-
-
-def upper_bound(section: type[BaseModel], key: str) -> float:
-    """The largest value the config model accepts for ``key`` (its ``le``/``lt`` constraint; inf when none)."""
-    bound = math.inf
-    for constraint in section.model_fields[key].metadata:
-        for name in ("le", "lt"):
-            if (value := getattr(constraint, name, None)) is not None:
-                bound = min(bound, float(value))
-    return bound
-
-
-def vm_scaled(key: str, value: float, factor: float) -> float:
-    """``value`` of the config key ``key`` times ``factor``, held at the key's upper bound."""
-    return min(value * factor, upper_bound(VM_SCALED_KEYS[key], key))
-
-
-def _scale_keys(text: str, factor: float) -> str:
-    """``text`` with each of ``VM_SCALED_KEYS`` multiplied by ``factor`` (held at its upper bound)."""
-    for key in VM_SCALED_KEYS:
-
-        def scaled(match: re.Match[str], key: str = key) -> str:
-            return f"{match[1]}{vm_scaled(key, float(match[2]), factor):g}"
-
-        text, found = re.subn(rf"^({key}\s*=\s*)([0-9.]+)", scaled, text, flags=re.MULTILINE)
-        assert found == 1, f"{key} is not in the packaged mill.toml"
-    return text
-
-
-def _dilate_drives(text: str, factor: float) -> str:
-    """``text`` with both drives' ``max_accel_rpm_s`` divided by ``factor``."""
-    text, found = re.subn(
-        r"^(max_accel_rpm_s\s*=\s*)([0-9.]+)", lambda m: f"{m[1]}{float(m[2]) / factor:g}", text, flags=re.MULTILINE
-    )
-    assert found == 2, "the packaged mill.toml should set max_accel_rpm_s for the rotary and the vibration drive"
-    return text
-
-
-BACKEND_CONFIGS = {"millbus": "mill.toml", "cia402": "mill-cia402.toml"}
-"""The shipped configuration of each drive backend (``config/``): the same mill, its drives behind the millbus
-node or standard CiA 402 drives (issue 36)."""
-
-
-def write_config(
-    directory: Path, transport: Transport, *, dilate_drives: bool = False, backend: str = "millbus"
-) -> Path:
-    """The packaged config (parameter Set A) with this transport's ``[bus]`` and a ``[service]`` in ``directory``.
-
-    Inside the VM the timeouts in ``VM_SCALED_KEYS`` are multiplied by ``bound_scale()`` (the measured
-    slowdown): the VM checks behaviour and frame flow, the host the tight timing. ``dilate_drives``
-    also divides the drives' accelerations by it there, so that time is dilated throughout: a rate
-    rule (the node's step bound: its rate × its window, the watchdog timeout) then allows in rpm what
-    it allows on the host, at the cost of ramps that many times longer. For the scenarios whose
-    subject is that rule; the others keep the host's drives.
-    """
-    base = packaged_file("mill.toml") if backend == "millbus" else REPO / "config" / BACKEND_CONFIGS[backend]
-    text = base.read_text(encoding="utf-8")
-    head = text.partition("[bus]")[0]
-    if bound_scale() > 1.0:
-        head = _scale_keys(head, bound_scale())
-        if dilate_drives:
-            head = _dilate_drives(head, bound_scale())
-    sections = {
-        "bus": transport.bus_config_fields(),
-        "service": {"socket_path": str(directory / "mill.sock"), "records_dir": str(directory / "records")},
-    }
-    body = "".join(
-        f"[{name}]\n" + "".join(f"{key} = {_toml_value(value)}\n" for key, value in fields.items()) + "\n"
-        for name, fields in sections.items()
-    )
-    path = directory / "mill.toml"
-    path.write_text(head + body, encoding="utf-8")
-    return path
-
-
-# --- the probe ------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Seen:
-    """One frame the probe captured: its receive time (s, wall clock), the raw frame and its decoding."""
-
-    t: float
-    frame: can.Message
-    decoded: Decoded | None
-    """None for frames the codec does not know (babble) or cannot read."""
-
-    @property
-    def message(self) -> MillMessage | None:
-        """The decoded message; None when unknown or its CRC failed."""
-        return self.decoded.message if self.decoded is not None else None
-
-    def of(self, kind: type[M]) -> M:
-        """The decoded message, which the caller has selected as a ``kind`` (fails the test if it is not one)."""
-        message = self.message
-        assert isinstance(message, kind), f"expected a {kind.__name__} frame, the probe saw {message!r}"
-        return message
-
-    @property
-    def crc_failed(self) -> bool:
-        """True for an E2E-protected frame whose CRC did not check."""
-        return self.decoded is not None and not self.decoded.crc_ok
-
-
-def is_status(state: NodeState | None = None, first_fault: FaultCode | None = None) -> Callable[[Seen], bool]:
-    """A predicate: a NodeStatus (in ``state``, with ``first_fault``)."""
-
-    def check(seen: Seen) -> bool:
-        m = seen.message
-        return (
-            isinstance(m, NodeStatus)
-            and (state is None or m.state is state)
-            and (first_fault is None or FaultCode(m.first_fault) is first_fault)
-        )
-
-    return check
-
-
-def is_command(code: CommandCode) -> Callable[[Seen], bool]:
-    """A predicate: a Command frame with ``code``."""
-    return lambda seen: isinstance(seen.message, Command) and seen.message.command is code
-
-
-def is_kind(kind: type[MillMessage]) -> Callable[[Seen], bool]:
-    """A predicate: a frame of this kind, decoded or not (a corrupted frame still has its identifier)."""
-    return lambda seen: seen.decoded is not None and seen.decoded.kind is kind
-
-
-def sequence_limit_reached_at(
-    seen: list[Seen], limit: int, decay_frames: int, min_decay_s: float = 0.0
-) -> float | None:
-    """When the frames ``seen`` on one identifier first give a sequence score of ``limit`` (s), as sent or as received.
-
-    The score is the receiver's own (SAFETY 17, :class:`~millctl.protocol.e2e.E2EReceiver`, with the
-    controller's ``min_decay_s`` for the identifier), fed the frames with a good CRC and a counter at their
-    capture times. Two orders are judged, and the earlier moment is the evidence (None while neither
-    reaches the limit): the order the probe received them in, and the order of their kernel
-    timestamps, which is the order they were sent in. On a CAN wire the two are one. On vcan, frames from
-    senders on different CPUs reach each socket in the order those CPUs' soft interrupts deliver them, so
-    every receiver, the controller's included, may see its own order (seen in the VM: a forged counter 2
-    received before the genuine 1 stamped 1.8 ms earlier, and the probe's score resynchronised on it).
-    """
-    moments = [
-        _limit_reached_at(order, E2EReceiver(limit, sequence_decay_frames=decay_frames, min_decay_s=min_decay_s))
-        for order in (seen, sorted(seen, key=lambda s: s.t))
-    ]
-    return min((t for t in moments if t is not None), default=None)
-
-
-def _limit_reached_at(seen: list[Seen], receiver: E2EReceiver) -> float | None:
-    """When the frames ``seen``, in this order, first bring ``receiver``'s sequence score to its limit (s)."""
-    limit = receiver.error_limit
-    for s in seen:
-        if s.decoded is not None and s.decoded.crc_ok and s.decoded.counter is not None:
-            receiver.classify(s.decoded.counter, crc_ok=True, now_s=s.t)
-            if receiver.sequence_score >= limit:
-                return s.t
-    return None
-
-
-PROBE_RECEIVE_QUEUE_BYTES = 4 * 2**20
-"""The probe's socket receive queue on SocketCAN (bytes; udp_multicast's bus sizes its own, millctl.protocol.udp).
-
-The kernel's default (``net.core.rmem_default``, ~208 KiB: a few hundred frames) is what the test process
-may fall behind by when it stalls under emulation, and a frame the probe misses is evidence it lacks."""
-
-
-def deepen_receive_queue(bus: can.BusABC, size_bytes: int = PROBE_RECEIVE_QUEUE_BYTES) -> int | None:
-    """Ask the kernel for a receive queue of ``size_bytes`` on a SocketCAN bus; return what it granted (None: not one).
-
-    ``SO_RCVBUFFORCE`` passes ``net.core.rmem_max`` where the process may (root in the VM; the namespace's owner);
-    elsewhere ``SO_RCVBUF`` gets what the cap allows.
-    """
-    sock = getattr(bus, "socket", None)
-    if not isinstance(sock, socket.socket):
-        return None
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, size_bytes)
-    except OSError:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size_bytes)
-    granted: int = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
-    return granted
-
-
-class Probe:
-    """The third bus: a capture thread that timestamps every frame, and a sender (faults, rogue frames, E-stop).
-
-    It is opened by the project's bus factory, so on udp_multicast it does not
-    hear its own frames (like a real CAN controller).
-    """
-
-    def __init__(self, bus_config: Bus, codec: Codec) -> None:
-        self.bus = open_bus(bus_config)
-        deepen_receive_queue(self.bus)
-        self.codec = codec
-        self._seen: list[Seen] = []
-        self._lock = threading.Lock()
-        self._halt = threading.Event()
-        self._thread = threading.Thread(target=self._capture, name="hil-probe", daemon=True)
-        self._thread.start()
-
-    def _capture(self) -> None:
-        while not self._halt.is_set():
-            try:
-                frame = self.bus.recv(0.05)
-            except (can.CanError, OSError):  # a datagram that is no frame (the adversary's): not ours to judge
-                continue
-            if frame is None:
-                continue
-            try:
-                decoded: Decoded | None = self.codec.decode(frame)
-            except ProtocolError:
-                decoded = None
-            t = frame.timestamp or time.time()
-            with self._lock:
-                self._seen.append(Seen(t, frame, decoded))
-
-    def send(self, message: MillMessage, counter: int = 0) -> float:
-        """Send one message; return the wall-clock time just before it went out (s)."""
-        frame = self.codec.encode(message, counter)
-        t = time.time()
-        self.bus.send(frame)
-        return t
-
-    def inject(self, fault: SimFaultCode, param: float = 0.0, active: bool = True) -> float:
-        """Send a SimFault frame to the node (fault injection); return when it was sent."""
-        return self.send(SimFault(fault, active, param))
-
-    def frames(self, after: float = -math.inf, where: Callable[[Seen], bool] | None = None) -> list[Seen]:
-        """Captured frames received after ``after`` (s) matching ``where``, in order."""
-        with self._lock:
-            seen = list(self._seen)
-        return [s for s in seen if s.t > after and (where is None or where(s))]
-
-    def forget(self) -> None:
-        """Drop what was captured so far: a scenario handed a shared mill (tests/hil/mill_pool.py) sees its own."""
-        with self._lock:
-            self._seen.clear()
-
-    def now(self) -> float:
-        """The capture's clock (s, wall clock)."""
-        return time.time()
-
-    def wait_first(self, where: Callable[[Seen], bool], after: float, timeout_s: float, what: str) -> Seen:
-        """The first frame after ``after`` matching ``where``, waiting up to ``timeout_s`` for it to arrive."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            found = self.frames(after, where)
-            if found:
-                return found[0]
-            if time.monotonic() > deadline:
-                pytest.fail(f"the probe saw no {what} within {timeout_s:.1f} s; {self.describe_since(after)}")
-            time.sleep(POLL_S * bound_scale())
-
-    def describe_since(self, after: float) -> str:
-        """What the probe captured after ``after``: how many frames, and the node's state in its newest NodeStatus."""
-        seen = self.frames(after)
-        count = f"{len(seen)} frame{'' if len(seen) == 1 else 's'}"
-        statuses = [s for s in seen if isinstance(s.message, NodeStatus)]
-        if not statuses:
-            return f"it captured {count} since, no NodeStatus among them"
-        newest = statuses[-1]
-        status = newest.of(NodeStatus)
-        return (
-            f"it captured {count} since, {len(statuses)} NodeStatus; the newest, at "
-            f"+{newest.t - after:.2f} s: {status.state.name}, first fault {FaultCode(status.first_fault).name}, "
-            f"fault bits {status.fault_bits!r}"
-        )
-
-    def latest(self, kind: type[MillMessage]) -> Any:
-        """The newest decoded message of ``kind`` (None before the first)."""
-        found = self.frames(where=lambda s: isinstance(s.message, kind))
-        return found[-1].message if found else None
-
-    def close(self) -> None:
-        """Stop capturing and shut the bus down."""
-        self._halt.set()
-        self._thread.join(timeout=5.0)
-        self.bus.shutdown()
 
 
 # --- the mill under test --------------------------------------------------------------------------------------
@@ -756,6 +434,7 @@ __all__ = [
     "Probe",
     "Seen",
     "bound_scale",
+    "deepen_receive_queue",
     "is_command",
     "is_kind",
     "is_status",

@@ -25,7 +25,7 @@ import pytest
 
 from firmware_sim.cia402.power import PowerState, state_of
 from millctl.protocol import FaultFlag, FurnaceTelemetry, NodeState, NodeStatus
-from tests.hil import scenario_support
+from tests.hil import scenario_config, scenario_support
 from tests.hil.scenario_support import STANDSTILL_RPM, Mill, Probe, Seen, wait_for
 
 if TYPE_CHECKING:
@@ -81,7 +81,7 @@ def mill(
 
     def with_furnace(directory: Path, transport: Transport, **kwargs: Any) -> Path:
         path = write(directory, transport, **kwargs)
-        body = "".join(f"{key} = {scenario_support._toml_value(value)}\n" for key, value in fields.items())
+        body = "".join(f"{key} = {scenario_config._toml_value(value)}\n" for key, value in fields.items())
         path.write_text(path.read_text(encoding="utf-8") + "[drives.furnace_bus]\n" + body, encoding="utf-8")
         return path
 

@@ -9,7 +9,7 @@ import pytest
 from millctl.config import load_config
 from millctl.config.loader import packaged_file
 from millctl.config.models import Furnace, Timing
-from tests.hil.scenario_support import VM_SCALED_KEYS, _scale_keys, upper_bound, vm_scaled
+from tests.hil.scenario_config import VM_SCALED_KEYS, _scale_keys, upper_bound, vm_scaled
 
 
 def test_the_upper_bound_is_read_from_the_config_model() -> None:
