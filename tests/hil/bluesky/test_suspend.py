@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from bluesky.run_engine import RunEngineResult
 
-from millctl.api import ControllerState, EventKind, SimFaultName
+from millctl.api import ControllerState, EventKind, EventOut, SimFaultName
 from millctl.bluesky import SuspendWhenMillNotReady
 from millctl.bluesky.plans import mill_at
 from millctl.client import ServiceRefused
@@ -92,7 +92,9 @@ def test_a_trip_mid_plan_suspends_it_and_it_resumes_after_reset_and_arm(drill_se
     assert held_s >= 10.0 - 1.0 - 1e-6, held_s  # at most one reading period lost to the trip
     assert time.monotonic() - started > 10.0
     with drill_service.client("watch") as watch:
-        events = watch.events(after=0).events
+        events: list[EventOut] = []  # every page: under load there may be more than one page's 500
+        while page := watch.events(after=events[-1].seq if events else 0, limit=2000).events:
+            events += page
         assert not watch.control_state().held
     trips = [e for e in events if e.kind is EventKind.TRIP]
     assert trips
