@@ -152,7 +152,7 @@ class Cia402Drives(DrivesBackend):
         if code is CommandCode.ARM:
             self.report.intent = Intent.ENABLED
         elif code is CommandCode.DISARM:
-            self.report.intent = Intent.DISABLED
+            self.report.disarm()
         elif code is CommandCode.STOP:
             self.report.stop(now)
         elif code is CommandCode.RESET:

@@ -208,6 +208,17 @@ class NodeReport:
         if self.furnace is not None:
             self.furnace.forget()
 
+    def disarm(self) -> None:
+        """DISARM: the drives head for SWITCH ON DISABLED, and the next ARM enables them anew.
+
+        Until a drive has reached OPERATION ENABLED under this ARM, not being
+        there is the enabling under way, not a drive that left it by itself
+        (seen: arm, disarm, arm, set speeds tripped on the second ARM's
+        READY TO SWITCH ON).
+        """
+        self.intent = Intent.DISABLED
+        self._armed_once = False
+
     def setpoints(self, rotary_rpm: float, vibration_rpm: float) -> None:
         """The checked pair, as each drive's target (ignored unless enabled and not stopping or faulted)."""
         if self.intent is not Intent.ENABLED or self.stopping or self.bits or self.estop_latched:

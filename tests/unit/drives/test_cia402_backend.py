@@ -60,6 +60,20 @@ def test_arm_ramp_stop_estop_reset(rig: Rig402) -> None:
     assert rig.run(10.0, lambda: rig.controller.state is S.DISABLED), rig.messages("refusal")
 
 
+def test_arm_disarm_arm_again_and_run(rig: Rig402) -> None:
+    """An operator's routine: the second ARM's enabling is not a drive leaving OPERATION ENABLED by itself."""
+    rig.arm()
+    rig.controller.disarm()
+    assert rig.run(10.0, lambda: rig.controller.state is S.DISABLED), rig.controller.trip_cause
+    rig.controller.arm()
+    assert rig.run(30.0, lambda: rig.controller.state is S.ARMED), rig.controller.trip_cause
+    rig.controller.set_speeds(60.0, 300.0)
+    assert rig.run(60.0, lambda: rig.controller.trajectory is None and rig.controller.state is S.RUNNING), (
+        rig.controller.trip_cause)
+    rig.run(2.0)
+    assert rig.controller.state is S.RUNNING and not rig.controller.trip_cause
+
+
 def test_a_limit_read_back_that_differs_refuses_the_arm_naming_object_and_values(rig: Rig402) -> None:
     rig.connect()
     rig.sim.drives["rotary"].lie_readback(0x607F)
