@@ -14,6 +14,7 @@ other identifiers can fill the queue an E-stop has to reach a loop through.
 from __future__ import annotations
 
 import logging
+import socket
 from typing import Any
 
 import can
@@ -69,11 +70,31 @@ def open_bus(bus_config: Bus) -> can.BusABC:
     """
     kwargs = bus_kwargs(bus_config)
     try:
+        if kwargs["interface"] == "socketcand":
+            _reach_socketcand(kwargs)
         bus = can.Bus(**kwargs)
     except Exception as exc:  # a vendor driver may raise anything: each is "cannot open"
         raise BusError(_cannot_open(bus_config, exc)) from exc
     log.info("opened CAN bus %s", bus.channel_info)
     return bus
+
+
+SOCKETCAND_CONNECT_S = 2.0
+"""How long a socketcand daemon has to accept the connection (s) before the bus is refused."""
+
+
+def _reach_socketcand(kwargs: dict[str, Any]) -> None:
+    """Refuse at once a socketcand daemon that does not accept a connection (raises OSError).
+
+    python-can's socketcand interface retries a refused connection in a busy
+    loop for 10 s, logging a warning at every attempt; one attempt with a
+    timeout says the same in one line.
+    """
+    host, port = kwargs.get("host"), kwargs.get("port")
+    if not isinstance(host, str) or not isinstance(port, int):
+        return  # python-can names what is missing
+    with socket.create_connection((host, port), timeout=SOCKETCAND_CONNECT_S):
+        pass
 
 
 def _cannot_open(bus_config: Bus, exc: Exception) -> str:
