@@ -11,11 +11,10 @@ no PhysicsTelemetry, and it never reports RUNNING (docs/deployment.md,
 
 from __future__ import annotations
 
-from firmware_sim.node import MOVING, Node
+from firmware_sim.node import Node
 from millctl.protocol import (
     Decoded,
     DriveTelemetry,
-    FaultFlag,
     MillMessage,
     NodeState,
     PhysicsTelemetry,
@@ -48,13 +47,7 @@ class FurnaceNode(Node):
 
     def _checks(self, now: float, dt: float) -> None:
         """The furnace's checks, the watchdog and the link; a stop completes at once (nothing turns)."""
-        faults = self.furnace.check()
-        if self._state in MOVING and not self.link.heartbeat_live(now):
-            faults |= FaultFlag.WATCHDOG
-        if self.link.faulted:
-            faults |= FaultFlag.E2E_LINK
-        if self.furnace.heater_on and now - self._refreshed_s > self.config.furnace.setpoint_refresh_s:
-            faults |= FaultFlag.HEATER_TIMEOUT
+        faults = self._link_and_furnace_faults(now)
         if faults:
             self._latch(faults, f"checks: {faults!r}", now)
         if self.motion.stop is not None:

@@ -395,17 +395,22 @@ class Node:
         """At rest with standstill commanded and no stop under way."""
         return self.motion.zero and self._at_rest()
 
-    def _checks(self, now: float, dt: float) -> None:
-        measured = self.drives.sample()
-        self._measured = measured
-        reference = (self.drives.rotary_ref.speed_rpm, self.drives.vibration_ref.speed_rpm)
-        faults = self.monitor.check(measured, reference, dt) | self.furnace.check()
+    def _link_and_furnace_faults(self, now: float) -> FaultFlag:
+        """The furnace's checks, the watchdog, the E2E link and the heater's setpoint refresh (every node mode)."""
+        faults = self.furnace.check()
         if self._state in MOVING and not self.link.heartbeat_live(now):
             faults |= FaultFlag.WATCHDOG
         if self.link.faulted:
             faults |= FaultFlag.E2E_LINK
         if self.furnace.heater_on and now - self._refreshed_s > self.config.furnace.setpoint_refresh_s:
             faults |= FaultFlag.HEATER_TIMEOUT
+        return faults
+
+    def _checks(self, now: float, dt: float) -> None:
+        measured = self.drives.sample()
+        self._measured = measured
+        reference = (self.drives.rotary_ref.speed_rpm, self.drives.vibration_ref.speed_rpm)
+        faults = self.monitor.check(measured, reference, dt) | self._link_and_furnace_faults(now)
         if faults:
             self._latch(faults, f"checks: {faults!r}", now)
         self._expire_setpoints(now)
