@@ -189,11 +189,6 @@ def scalar_limit(law: LimitLaw, p: LimitParams) -> Callable[[float], float]:
     return corrected
 
 
-def omega_r_max_scalar(law: LimitLaw, p: LimitParams, omega_v_rad_s: float) -> float:
-    """ω_r,max (rad/s) of one ω_v in plain ``math``: :func:`scalar_limit` for one call (keep that for many)."""
-    return scalar_limit(law, p)(omega_v_rad_s)
-
-
 def is_every_cycle_bound(law: LimitLaw, p: LimitParams, omega_v_rad_s: ArrayLike) -> NDArray[np.bool_]:
     """True where the law guarantees detachment in every cycle of its own model.
 
@@ -301,7 +296,6 @@ __all__ = [
     "omega_r_max_eq8a",
     "omega_r_max_paper_eq9",
     "omega_r_max_paper_every_cycle",
-    "omega_r_max_scalar",
     "regime_flags",
     "scalar_limit",
     "sin_alpha_bound_consistent",

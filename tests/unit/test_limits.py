@@ -136,7 +136,7 @@ def test_scalar_interlock_agrees_with_vectorised_on_1e5_points(config: MillConfi
     import dataclasses
 
     from millctl.config.models import CamShape
-    from millctl.physics.limits import omega_r_max_scalar
+    from millctl.physics.limits import scalar_limit
 
     base = Envelope.from_config(config, law=law)
     envelope = dataclasses.replace(base, params=dataclasses.replace(base.params, cam=CamShape(cam)))
@@ -151,5 +151,6 @@ def test_scalar_interlock_agrees_with_vectorised_on_1e5_points(config: MillConfi
     checked = [envelope.check(a, b).ok for a, b in zip(w_r[sample].tolist(), w_v[sample].tolist(), strict=True)]
     assert np.array_equal(vector[sample], checked)
     finite_v = w_v[np.isfinite(w_v)]
-    limits = [omega_r_max_scalar(law, envelope.params, x) for x in rpm_to_rad_s(finite_v).tolist()]
+    law_rad_s = scalar_limit(law, envelope.params)
+    limits = [law_rad_s(x) for x in rpm_to_rad_s(finite_v).tolist()]
     assert np.array_equal(omega_r_max(law, envelope.params, rpm_to_rad_s(finite_v)), limits)
