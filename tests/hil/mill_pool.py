@@ -39,7 +39,7 @@ import pytest
 
 from millctl.errors import MillctlError
 from millctl.protocol import SimFaultCode
-from tests.hil.scenario_support import STANDSTILL_RPM, Mill, bound_scale, wait_for
+from tests.hil.scenario_support import Mill, bound_scale, wait_for
 
 if TYPE_CHECKING:
     from tests.hil.conftest import Spawner, Transport
@@ -220,7 +220,14 @@ def _reset_taken(mill: Mill) -> bool:
 
 
 def _as_fresh(status: dict[str, Any]) -> bool | None:
-    """True when ``status`` is what a freshly started mill reports (None otherwise: the wait goes on)."""
+    """True when ``status`` is what a freshly started mill reports (None otherwise: the wait goes on).
+
+    At rest means both speeds read exactly 0: the simulated encoders read 0 once a rotor is at rest
+    (firmware_sim/drives.py) and noisy values while it coasts down (noise σ up to 1 rpm), so a single
+    reading below ``scenario_support.STANDSTILL_RPM`` could hand the next scenario a coasting drive that
+    read above it after its ARM (tests/hil/test_scenarios.py::test_over_limit_setpoint_refused_by_the_controller
+    failed so in CI on udp_multicast).
+    """
     fresh = (
         status["state"] == "DISABLED"
         and status["node_state"] == "DISABLED"
@@ -228,8 +235,8 @@ def _as_fresh(status: dict[str, Any]) -> bool | None:
         and not status["node_faults"]
         and status["furnace_target_c"] is None
         and not status["heater_on"]
-        and abs(float(status["measured_rotary_rpm"])) < STANDSTILL_RPM
-        and abs(float(status["measured_vibration_rpm"])) < STANDSTILL_RPM
+        and float(status["measured_rotary_rpm"]) == 0.0
+        and float(status["measured_vibration_rpm"]) == 0.0
     )
     return True if fresh else None
 
