@@ -98,10 +98,14 @@ class BusHealthOut(Strict):
 class DriveOut(Strict):
     """One drive in its backend's words (CiA 402: its power state, NMT state, heartbeat, identity, EMCY)."""
 
-    name: str = Field(description="the motor it drives: rotary or vibration")
-    state: str = Field(description="its CiA 402 power state (statusword 0x6041), or unknown")
-    node_id: int | None = Field(default=None, description="its CANopen node ID, null on millbus")
-    detail: str = Field(default="", description="NMT state, heartbeat age, identity 0x1018, first EMCY")
+    name: str = Field(description="the motor it drives (rotary or vibration), or furnace: the millbus furnace node "
+                      "beside CiA 402 drives on its own channel ([drives.furnace_bus])")
+    state: str = Field(description="a drive's CiA 402 power state (statusword 0x6041), the furnace node's state "
+                       "(NodeStatus), or unknown")
+    node_id: int | None = Field(default=None, description="a drive's CANopen node ID; null on millbus and for the "
+                                "furnace node")
+    detail: str = Field(default="", description="a drive's NMT state, heartbeat age, identity 0x1018 and first EMCY; "
+                        "the furnace node's channel, NodeStatus age and temperature")
 
 
 class StatusOut(Strict):

@@ -190,7 +190,8 @@ def render_status(
     table.add_row("state", f"{state}   node {s.node_state or '—'} {' '.join(s.node_faults)}")
     if s.drives:  # drives with their own state machine (CiA 402): each one's power state, in its words
         table.add_row("drives", f"{s.drives_backend}: " + "; ".join(
-            f"{d.name} (node {d.node_id}) {d.state}" + (f" — {d.detail}" if d.detail else "") for d in s.drives))
+            d.name + (f" (node {d.node_id})" if d.node_id is not None else "") + f" {d.state}"
+            + (f" — {d.detail}" if d.detail else "") for d in s.drives))
     if control is not None:
         holder = control.holder or "nobody"
         table.add_row("control", holder + (" (lease expired)" if control.expired else ""))

@@ -234,9 +234,9 @@ class StatePanel(Static):
         node = status.node_state if status else None
         text.append_text(Text.assemble("\n", ("node ", "dim"), f"{node or '—'}  {faults}"))
         backend = status.drives_backend if status else ""
-        for drive in status.drives if status else []:  # CiA 402: each drive's power state
-            text.append_text(Text.assemble("\n", (f"{drive.name} ", "dim"),
-                                           f"{drive.state}  ({backend} node {drive.node_id})"))
+        for drive in status.drives if status else []:  # CiA 402: each drive's power state (and a furnace node's)
+            where = f"{backend} node {drive.node_id}" if drive.node_id is not None else drive.detail.split(";")[0]
+            text.append_text(Text.assemble("\n", (f"{drive.name} ", "dim"), f"{drive.state}  ({where})"))
         holder = control.holder if control else None
         who = "you (this terminal)" if mine else (holder or "nobody")
         expired = " (lease expired)" if control and control.expired else ""

@@ -18,6 +18,12 @@ def _cia402(status: StatusOut) -> StatusOut:
     ]})
 
 
+def _with_furnace(status: StatusOut) -> StatusOut:
+    """CiA 402 drives with the millbus furnace node on a channel of its own (config/mill-cia402-furnace.toml)."""
+    furnace = DriveOut(name="furnace", state="ARMED", detail="millbus furnace node on virtual:furnace; 612.0 °C")
+    return status.model_copy(update={"drives": [*_cia402(status).drives, furnace], "drives_backend": "cia402"})
+
+
 def _shown(status: StatusOut) -> str:
     console = Console(width=240, record=True)
     console.print(render_status(status))
@@ -44,3 +50,18 @@ def test_the_tui_state_panel_lists_each_cia402_drive() -> None:
     Recording().show(_cia402(status_at(3)), None, False, None)
     assert "rotary OPERATION ENABLED  (cia402 node 2)" in seen[-1]
     assert "vibration QUICK STOP ACTIVE  (cia402 node 3)" in seen[-1]
+
+
+def test_a_furnace_node_beside_the_drives_is_named_by_its_channel_not_a_node_id() -> None:
+    shown = _shown(_with_furnace(status_at(3)))
+    assert "furnace ARMED — millbus furnace node on virtual:furnace" in shown
+    assert "None" not in shown
+    seen: list[str] = []
+
+    class Recording(StatePanel):
+        def update(self, content: object = "", *, layout: bool = True) -> None:
+            seen.append(str(content))
+
+    Recording().show(_with_furnace(status_at(3)), None, False, None)
+    assert "furnace ARMED  (millbus furnace node on virtual:furnace)" in seen[-1]
+    assert "None" not in seen[-1]
