@@ -75,7 +75,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "node present; 3: the bus cannot be opened, is bus-off, runs at another bitrate, or the node is silent; "
         "1: invalid configuration. With [drives] backend = \"cia402\": each drive's NMT state (its heartbeat), "
         "identity 0x1018 against its EDS, mode (0x6502) and the limits it holds, read by SDO, writing nothing "
-        "(docs/deployment.md#standard-cia-402-drives). docs/deployment.md#millctl-bus-check",
+        "(docs/deployment.md#standard-cia-402-drives); with a furnace node beside them ([drives.furnace_bus]), its "
+        "channel and its NodeStatus too. docs/deployment.md#millctl-bus-check",
     )
     check.add_argument("--listen-s", type=_nonnegative_float, default=2.0, metavar="S",
                        help="how long to wait for the node's NodeStatus (default 2 s; it is sent every 50 ms)")
@@ -154,8 +155,27 @@ def _check(args: argparse.Namespace) -> int:
     return int(ExitCode.OK if report.ok else ExitCode.BUS)
 
 
+def _check_furnace_channel(config: Any, listen_s: float) -> Any:
+    """The furnace node's own channel beside CiA 402 drives (``[drives.furnace_bus]``) as millbus checks it; or None."""
+    from millctl.protocol import default_codec, open_bus
+    from millctl.protocol.bus_check import check_bus
+
+    furnace_bus = config.drives.furnace_bus
+    if furnace_bus is None:
+        return None
+    bus = open_bus(furnace_bus)
+    try:
+        return check_bus(furnace_bus, bus, default_codec(), listen_s)
+    finally:
+        bus.shutdown()
+
+
 def _check_cia402(args: argparse.Namespace, config: Any) -> int:
-    """``bus check`` on CiA 402 drives: NMT state, identity 0x1018 against the EDS, mode, the limits they hold."""
+    """``bus check`` on CiA 402 drives: NMT state, identity 0x1018 against the EDS, mode, the limits they hold.
+
+    With the millbus furnace node on a channel of its own, that channel and the node's NodeStatus are checked
+    too; a problem there is named "furnace channel: …" and fails the check as a drive's does.
+    """
     from millctl.drives.cia402.check import check_drives
     from millctl.protocol import open_bus
 
@@ -164,12 +184,15 @@ def _check_cia402(args: argparse.Namespace, config: Any) -> int:
         report = check_drives(config, bus, args.listen_s)
     finally:
         bus.shutdown()
+    furnace = _check_furnace_channel(config, args.listen_s)
+    problems = report.problems + ([f"furnace channel: {p}" for p in furnace.problems] if furnace else [])
     if args.json:
         from millctl.cli.failures import EXIT_NAMES
 
-        error = None if report.ok else {"code": EXIT_NAMES[ExitCode.BUS], "message": "; ".join(report.problems),
-                                        "exit_code": int(ExitCode.BUS)}
-        print_json(args, report.as_dict(), error)
+        error = None if not problems else {"code": EXIT_NAMES[ExitCode.BUS], "message": "; ".join(problems),
+                                           "exit_code": int(ExitCode.BUS)}
+        result = {**report.as_dict(), "furnace": furnace.as_dict() if furnace else None, "ok": not problems}
+        print_json(args, result, error)
     else:
         out = stdout_console()
         bus_config = config.bus
@@ -186,9 +209,14 @@ def _check_cia402(args: argparse.Namespace, config: Any) -> int:
                 same = "" if held == values["millctl_writes"] else "  (millctl writes it before arming)"
                 out.print(f"           {where}: holds {held if held is not None else '—'}, millctl writes "
                           f"{values['millctl_writes']}{same}", markup=False)
-    for problem in report.problems:
+        if furnace is not None:
+            node = (f"present: NodeStatus after {furnace.node_status_after_s:.2f} s, state {furnace.node_state}, "
+                    f"first fault {furnace.node_first_fault}") if furnace.node_present else "ABSENT"
+            out.print(f"furnace  millbus node on {furnace.interface}:{furnace.channel}: {node} ({furnace.frames} "
+                      f"frames in {furnace.listened_s:.2f} s)", markup=False)
+    for problem in problems:
         stderr_console().print(f"problem: {problem}", markup=False, style="bold red")
-    return int(ExitCode.OK if report.ok else ExitCode.BUS)
+    return int(ExitCode.BUS if problems else ExitCode.OK)
 
 
 def _export_c(args: argparse.Namespace) -> int:

@@ -11,12 +11,20 @@ from millctl.protocol import Codec
 from millctl.safety import Envelope
 
 
-def open_drives(config: MillConfig, bus: can.BusABC, codec: Codec, envelope: Envelope) -> DrivesBackend:
-    """The configured backend on ``bus`` (CiA 402 imports python-canopen only here; it opens the furnace's bus)."""
+def open_drives(
+    config: MillConfig, bus: can.BusABC, codec: Codec, envelope: Envelope, *, furnace_bus: can.BusABC | None = None
+) -> DrivesBackend:
+    """The configured backend on ``bus`` (CiA 402 imports python-canopen only here).
+
+    ``furnace_bus``: the furnace node's channel beside CiA 402 drives, opened by the caller (the service taps it
+    for its bus log) and shut down by it; None: the backend opens ``[drives.furnace_bus]`` itself when configured.
+    """
     if config.drives.backend is DriveBackend.CIA402:
         from millctl.drives.cia402 import Cia402Drives
 
-        return Cia402Drives(config, bus, envelope, codec=codec)
+        return Cia402Drives(config, bus, envelope, codec=codec, furnace_bus=furnace_bus)
+    if furnace_bus is not None:
+        raise ValueError("a furnace channel of its own is for CiA 402 drives only ([drives.furnace_bus])")
     return MillbusDrives(bus, codec)
 
 
