@@ -11,6 +11,8 @@ beside the drives: a second CAN channel"). Both are stepped by the one clock.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import can
 
 from firmware_sim.cia402.drive import SimDrive
@@ -20,7 +22,29 @@ from firmware_sim.furnace_node import FurnaceNode
 from millctl.clock import Clock
 from millctl.config.models import MillConfig
 from millctl.errors import InvalidInputError
-from millctl.protocol import open_bus
+from millctl.protocol import SimFaultCode, open_bus
+
+
+@dataclass(frozen=True)
+class InjectorPair:
+    """The two simulated devices' fault injectors as the service's drill routes read them.
+
+    A SimFault frame reaches the injector of the bus it is sent on: the furnace's HEATER_FAIL goes to the
+    furnace node's channel, the drives' faults to the drives' bus, CLEAR to both (millctl/service/faults.py).
+    """
+
+    drives: FaultInjector
+    furnace: FaultInjector
+
+    @property
+    def enabled(self) -> bool:
+        """Injection is on (both were built with the same ``fault_injection``)."""
+        return self.drives.enabled and self.furnace.enabled
+
+    @property
+    def active(self) -> dict[SimFaultCode, float]:
+        """Every fault active now on either device, with its parameter."""
+        return {**self.drives.active, **self.furnace.active}
 
 
 class Cia402FurnaceMill:
@@ -54,9 +78,9 @@ class Cia402FurnaceMill:
         return self.mill.drives
 
     @property
-    def faults(self) -> FaultInjector:
-        """The drives' fault injector (SimFault frames on the drives' bus; the furnace node has its own)."""
-        return self.mill.faults
+    def faults(self) -> InjectorPair:
+        """The drives' and the furnace node's fault injectors, each fed by SimFault frames on its own bus."""
+        return InjectorPair(self.mill.faults, self.furnace_node.faults)
 
     @property
     def true_speeds_rpm(self) -> tuple[float, float]:
@@ -101,4 +125,4 @@ class Cia402FurnaceMill:
             self.furnace_bus.shutdown()
 
 
-__all__ = ["Cia402FurnaceMill"]
+__all__ = ["Cia402FurnaceMill", "InjectorPair"]

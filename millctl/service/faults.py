@@ -7,7 +7,9 @@ the service refuses the switch (:class:`FaultInjectionRefused`, exit 2)
 unless it runs the embedded simulated node, and without the switch the
 routes do not exist (404). Each injection is a real ``SimFault`` frame on the
 service's bus (so the bus log holds it) and a ``drill`` event naming who
-injected what (docs/operations.md#fault-drills).
+injected what (docs/operations.md#fault-drills). Beside CiA 402 drives with the
+furnace node on its own channel, the furnace's fault (HEATER_FAIL) is sent on
+that channel and CLEAR on both, so each simulated device gets its own faults.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from millctl.service.headers import ClientName, client_source
 if TYPE_CHECKING:
     from millctl.controller import Controller
     from millctl.service.runtime import ServiceRuntime
+    from millctl.service.tap import TappedBus
 
 DOC_REF = "docs/operations.md#fault-drills"
 
@@ -55,7 +58,8 @@ def inject(rt: ServiceRuntime, request: FaultRequest, who: str) -> FaultsOut:
     frame = default_codec().encode(SimFault(code, request.active, request.param))
 
     def send(c: Controller) -> FaultsOut:
-        rt.bus.send(frame)
+        for bus in _buses_for(rt, code):
+            bus.send(frame)
         return active_faults(rt)
 
     before = rt.call(send, needs_node=False)
@@ -66,6 +70,23 @@ def inject(rt: ServiceRuntime, request: FaultRequest, who: str) -> FaultsOut:
     rt.journal.add(EventKind.DRILL, who, f"fault drill: {what}", fault=request.fault.value, active=request.active,
                    param=request.param)
     return before
+
+
+FURNACE_FAULTS = frozenset({SimFaultCode.HEATER_FAIL})
+"""Faults of the furnace: beside CiA 402 drives they go to the furnace node on its own channel."""
+
+
+def _buses_for(rt: ServiceRuntime, code: SimFaultCode) -> list[TappedBus]:
+    """Where a SimFault frame goes: the node's bus, or two buses beside CiA 402 drives.
+
+    There the furnace's faults go to the furnace node's channel ([drives.furnace_bus]) and CLEAR to both,
+    so that each simulated device gets its own.
+    """
+    if rt.furnace_bus is None:
+        return [rt.bus]
+    if code is SimFaultCode.CLEAR:
+        return [rt.bus, rt.furnace_bus]
+    return [rt.furnace_bus] if code in FURNACE_FAULTS else [rt.bus]
 
 
 def active_faults(rt: ServiceRuntime) -> FaultsOut:

@@ -1,8 +1,8 @@
-"""The furnace node's own channel beside CiA 402 drives, as the operator checks and records it (issue 36).
+"""The furnace node's own channel beside CiA 402 drives, as the operator checks, records and drills it (issue 36).
 
 ``millctl bus check`` listens to ``[drives.furnace_bus]`` as well as to the drives' bus and names a silent
 furnace node; the service's bus log holds the furnace channel's frames beside the drives', each line under
-its channel's name.
+its channel's name; a fault drill's heater fault reaches the furnace node, the drives' faults the drives.
 """
 
 from __future__ import annotations
@@ -24,8 +24,11 @@ from millctl.cli.bus_cmd import _check_cia402
 from millctl.clock import MonotonicClock
 from millctl.config import load_config
 from millctl.config.models import MillConfig
+from millctl.protocol import SimFaultCode
 from millctl.service import ServiceRuntime
 from tests.support.pace import stretched
+from tests.support.service import wait_for
+from tests.unit.service.test_fault_drills import ask
 
 CONFIG = Path("config/mill-cia402-furnace.toml")
 
@@ -135,3 +138,25 @@ def test_the_service_bus_log_records_the_furnace_channel_beside_the_drives(
     node_status = [s["decoded"] for s in shown if s["id"] == 0x100]
     assert node_status and all(words.startswith("NodeStatus") for words in node_status), node_status[:3]
     assert any(s["decoded"].startswith("heartbeat") or "NMT" in s["decoded"] for s in shown)
+
+
+def test_a_heater_drill_reaches_the_furnace_node_and_clear_clears_both(tmp_path: Path) -> None:
+    """POST /v1/sim/faults: HEATER_FAIL goes to the furnace node on its channel, VIB_STALL to the drives."""
+    runtime = ServiceRuntime(load_config(own_channels(tmp_path)), fault_injection=True)
+    try:
+        runtime.start()
+        assert runtime.wait_for_node(stretched(10.0)), runtime.controller.trip_cause
+        sim = runtime.node
+        assert isinstance(sim, Cia402FurnaceMill)
+        for fault in ("HEATER_FAIL", "VIB_STALL"):
+            assert ask(runtime, "POST", "/v1/sim/faults", json={"fault": fault}).status_code == 200
+        wait_for(lambda: sim.furnace_node.furnace.element_open and sim.drives["vibration"].model.stalled,
+                 stretched(5.0), "the heater fault at the furnace node and the stall at the vibration drive")
+        assert set(sim.furnace_node.faults.active) == {SimFaultCode.HEATER_FAIL}  # not the drives'
+        assert set(sim.mill.faults.active) == {SimFaultCode.VIB_STALL}
+        assert set(ask(runtime, "GET", "/v1/sim/faults").json()["active"]) == {"HEATER_FAIL", "VIB_STALL"}
+        assert ask(runtime, "POST", "/v1/sim/faults", json={"fault": "CLEAR"}).status_code == 200
+        wait_for(lambda: not sim.faults.active, stretched(5.0), "CLEAR to reach both devices")
+        assert not sim.furnace_node.furnace.element_open
+    finally:
+        runtime.close()
