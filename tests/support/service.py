@@ -30,6 +30,7 @@ from tests.support.realtime import popen as realtime_popen
 
 if TYPE_CHECKING:
     from millctl.service import ServiceRuntime
+    from tests.support.realtime import Role
 
 REPO = Path(__file__).resolve().parents[2]
 DEMO_RECIPE = REPO / "config" / "recipes" / "demo.toml"
@@ -87,16 +88,28 @@ class Service:
         pytest.fail(f"the service did not stop within {deadline.describe()}:\n{self.output()[-2000:]}")
 
 
-def run_millctl(config: Path, *args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
-    """Run ``millctl --config CONFIG ARGS…`` and capture its output."""
-    return subprocess.run(
-        [sys.executable, "-m", "millctl", "--config", str(config), *args],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=stretched(timeout_s),
-        check=False,
-    )
+def run_millctl(
+    config: Path, *args: str, timeout_s: float = 60.0, realtime: Role | None = None
+) -> subprocess.CompletedProcess[str]:
+    """Run ``millctl --config CONFIG ARGS…`` and capture its output.
+
+    ``realtime="controller"``: at the controller's real-time policy (tests/support/realtime.py), for a command
+    that is the controller itself (``recipe run`` starting its embedded service and node when none runs): at
+    the normal policy a loaded host delays its control loop past the node's watchdog, which then trips the
+    mill, correctly (seen: its final stop tripped WATCHDOG with both hil tiers and two other jobs running).
+    """
+    argv = [sys.executable, "-m", "millctl", "--config", str(config), *args]
+    if realtime is None:
+        return subprocess.run(argv, cwd=REPO, capture_output=True, text=True, timeout=stretched(timeout_s),
+                              check=False)
+    proc = realtime_popen(argv, realtime=realtime, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        out, err = proc.communicate(timeout=stretched(timeout_s))
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        raise
+    return subprocess.CompletedProcess(argv, proc.returncode, out.decode(), err.decode())
 
 
 def start_service(

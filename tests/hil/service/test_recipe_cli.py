@@ -57,7 +57,7 @@ def test_run_prints_a_summary_and_writes_a_complete_record(service: Service) -> 
 def test_run_starts_the_embedded_service_when_none_runs_and_stops_it_after() -> None:
     with private_dir() as directory:
         config = fast_mill(directory)
-        result = run_millctl(config, "recipe", "run", str(recipe(directory)), timeout_s=120)
+        result = run_millctl(config, "recipe", "run", str(recipe(directory)), timeout_s=120, realtime="controller")
         assert result.returncode == 0, result.stderr
         assert "starting a SIMULATED mill" in result.stderr
         assert "recipe short: DONE" in result.stdout
