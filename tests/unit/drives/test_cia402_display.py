@@ -40,28 +40,28 @@ def test_status_on_millbus_has_no_drives_row() -> None:
     assert "drives " not in _shown(status_at(3))
 
 
-def test_the_tui_state_panel_lists_each_cia402_drive() -> None:
+def _panel(status: StatusOut) -> str:
+    """What the TUI's state panel shows for ``status``."""
     seen: list[str] = []
 
     class Recording(StatePanel):
         def update(self, content: object = "", *, layout: bool = True) -> None:
             seen.append(str(content))
 
-    Recording().show(_cia402(status_at(3)), None, False, None)
-    assert "rotary OPERATION ENABLED  (cia402 node 2)" in seen[-1]
-    assert "vibration QUICK STOP ACTIVE  (cia402 node 3)" in seen[-1]
+    Recording().show(status, None, False, None)
+    return seen[-1]
+
+
+def test_the_tui_state_panel_lists_each_cia402_drive() -> None:
+    panel = _panel(_cia402(status_at(3)))
+    assert "rotary OPERATION ENABLED  (cia402 node 2)" in panel
+    assert "vibration QUICK STOP ACTIVE  (cia402 node 3)" in panel
 
 
 def test_a_furnace_node_beside_the_drives_is_named_by_its_channel_not_a_node_id() -> None:
     shown = _shown(_with_furnace(status_at(3)))
     assert "furnace ARMED — millbus furnace node on virtual:furnace" in shown
     assert "None" not in shown
-    seen: list[str] = []
-
-    class Recording(StatePanel):
-        def update(self, content: object = "", *, layout: bool = True) -> None:
-            seen.append(str(content))
-
-    Recording().show(_with_furnace(status_at(3)), None, False, None)
-    assert "furnace ARMED  (millbus furnace node on virtual:furnace)" in seen[-1]
-    assert "None" not in seen[-1]
+    panel = _panel(_with_furnace(status_at(3)))
+    assert "furnace ARMED  (millbus furnace node on virtual:furnace)" in panel
+    assert "None" not in panel
