@@ -2,8 +2,9 @@
 
 Sample k of a scene: rod 0 from its start angle with lift phase 2πk/K, its one-rod event
 (:mod:`.events`), and the first time the carried ride from the bottom needs a wall traction
-|F_t| > μN (:func:`_slip_onset`, two trig sums μN/m ∓ F_t/m searched like N). One scene
-(:func:`telemetry_samples`) or a batch of scenes (:func:`telemetry_batch`), no allocation per scene.
+|F_t| > μN (:func:`_slip_onset`, two trig sums μN/m ∓ F_t/m, each searched by certified safe steps,
+:func:`_margin_first_zero`). One scene (:func:`telemetry_samples`) or a batch of scenes (:func:`telemetry_batch`),
+no allocation per scene.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from millctl.physics.kernels.detach import _falling_zero_windowed, _revolution_s
+from millctl.physics.kernels.detach import _falling_zero_windowed, _held_until, _revolution_s
 from millctl.physics.kernels.events import _event, _scratch
 from millctl.physics.kernels.layout import (
     _A0,
@@ -30,6 +31,7 @@ from millctl.physics.kernels.layout import (
     _O_THD,
     _R0,
     _RD,
+    _RTOL,
     _STATE_COLUMNS,
     _T_COUNT,
     _TH0,
@@ -43,7 +45,7 @@ from millctl.physics.kernels.layout import (
     WALL,
     FloatArray,
 )
-from millctl.physics.kernels.trig import _set_term, _trig
+from millctl.physics.kernels.trig import _set_term, _trig, _trig012, _trig_bound
 
 
 @njit(cache=True, error_model="numpy")
@@ -70,6 +72,38 @@ def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
     return rows
 
 
+_SAFE_STEPS = 48
+"""Steps of :func:`_margin_first_zero` before it hands the rest of the arc to the windowed search."""
+
+
+@njit(cache=True, error_model="numpy")
+def _margin_first_zero(p, st, tr, i, t_end):  # type: ignore[no-untyped-def]
+    """First zero in [0, t_end] of margin row i (m(0) > 0), by certified safe steps; inf: none.
+
+    With M = Σ|a_k| w_k² ≥ |m''|, m(t + h) ≥ m + m' h − ½ M h² > 0 for h < 2m / (√(m'² + 2Mm) − m'), so
+    each step lands short of the first zero (never past it) and near it becomes a Newton step; the arcs
+    that the slow term alone keeps positive are skipped (:func:`.detach._held_until`). A step below the
+    root finder's resolution ends in one Newton step, the zero to rounding (as the windowed search's Brent
+    finds it, ~1e-14 s apart); a ride that grazes zero without crossing goes to the windowed search after
+    :data:`_SAFE_STEPS` steps. About 6 steps a margin on the studies' 100 × 100 map, against ~12 trig sums
+    of the windowed search's cell tests and Brent.
+    """
+    curvature_max = _trig_bound(tr, i, 2)
+    t = max(0.0, _held_until(tr, i, 0.0))
+    for _ in range(_SAFE_STEPS):
+        if t >= t_end:
+            return math.inf
+        m, dm, _ = _trig012(tr, i, t, 1.0)
+        if m <= 0.0:
+            return t
+        h = 2.0 * m / (math.sqrt(dm * dm + 2.0 * curvature_max * m) - dm)
+        if dm < 0.0 and h <= 4.0 * _RTOL * t:
+            return t + m / -dm
+        t += h
+        t = max(t, _held_until(tr, i, t))
+    return _falling_zero_windowed(p, st, tr, i, 1.0, t, t_end) if t < t_end else math.inf
+
+
 @njit(cache=True, error_model="numpy")
 def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
     """First time in [0, t_end] at which the carried rod needs |F_t| > μN (0: at once; inf: never).
@@ -84,7 +118,7 @@ def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
     for r in range(2):
         horizon = min(t_end, onset)
         if horizon > 0.0:
-            onset = min(onset, _falling_zero_windowed(p, st, tr, r, 1.0, 0.0, horizon))
+            onset = min(onset, _margin_first_zero(p, st, tr, r, horizon))
     return onset
 
 
