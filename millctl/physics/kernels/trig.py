@@ -2,7 +2,8 @@
 
 N/m = r0 ω_r² − g_eff sin θ (corrected) or the paper's eq. 7 form 2 r0 ω_r² − (g − (ω_v² − k/m) r_d sin α) sin θ,
 with sin α sin θ = ½[cos(α − θ) − cos(α + θ)] and −g sin θ = g cos(θ + π/2): three terms per rod
-(:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form).
+(:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form). A rod's N row is marked
+(``_T_N_FORM``) and evaluated in the product form instead (:func:`_n_form012`): two sine–cosine pairs, not three.
 """
 
 from __future__ import annotations
