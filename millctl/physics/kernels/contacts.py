@@ -29,7 +29,7 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _rel, _zero_length_departure
-from millctl.physics.kernels.roots import _brentq, _f, _xtol
+from millctl.physics.kernels.roots import _brentq_from, _f, _xtol
 
 
 @leaf_kernel
@@ -51,13 +51,17 @@ def _scan_step_s(p):  # type: ignore[no-untyped-def]
 @leaf_kernel
 def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
     """Exact contact time in [a, b] of one candidate interval, or inf (a minimum that stays apart)."""
-    if _f(_F_SIGN_SEP, p, st, tr, i, j, b) <= 0.0:
-        return _brentq(_F_SIGN_SEP, p, st, tr, i, j, a, b, _xtol(a, b, tol), _RTOL)
+    f_b = _f(_F_SIGN_SEP, p, st, tr, i, j, b)
+    if f_b <= 0.0:
+        f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
+        return _brentq_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, f_b, _xtol(a, b, tol), _RTOL)
     da, db = _f(_F_DSEP, p, st, tr, i, j, a), _f(_F_DSEP, p, st, tr, i, j, b)
     if da < 0.0 < db:
-        t_m = _brentq(_F_DSEP, p, st, tr, i, j, a, b, _xtol(a, b, 0.0), _RTOL)
-        if _f(_F_SIGN_SEP, p, st, tr, i, j, t_m) <= 0.0:
-            return _brentq(_F_SIGN_SEP, p, st, tr, i, j, a, t_m, _xtol(a, t_m, tol), _RTOL)
+        t_m = _brentq_from(_F_DSEP, p, st, tr, i, j, a, b, da, db, _xtol(a, b, 0.0), _RTOL)
+        f_m = _f(_F_SIGN_SEP, p, st, tr, i, j, t_m)
+        if f_m <= 0.0:
+            f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
+            return _brentq_from(_F_SIGN_SEP, p, st, tr, i, j, a, t_m, f_a, f_m, _xtol(a, t_m, tol), _RTOL)
     return math.inf
 
 

@@ -31,7 +31,7 @@ from millctl.physics.kernels.layout import (
     FloatArray,
     leaf_kernel,
 )
-from millctl.physics.kernels.roots import _brentq, _xtol
+from millctl.physics.kernels.roots import _brentq, _brentq_from, _xtol
 from millctl.physics.kernels.trig import _trig, _trig012, _trig_bound, _trig_rows
 
 
@@ -42,7 +42,7 @@ def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-
     fa, d1a, _ = _trig012(tr, i, a, sign)
     fb, d1b, _ = _trig012(tr, i, b, sign)
     if fa > 0.0 and fb < 0.0:  # f' monotone: exactly one falling zero in [a, b], no need for the critical point
-        return _brentq(f_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
+        return _brentq_from(f_code, p, st, tr, i, 0, a, b, fa, fb, _xtol(a, b, 0.0), _RTOL)
     if fa > 0.0 and fb > 0.0 and d1a < 0.0 < d1b:
         # convex here: f lies above both end tangents; where they cross is a lower bound on min f
         t_x = (fb - fa + d1a * a - d1b * b) / (d1a - d1b)
@@ -51,12 +51,13 @@ def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-
     split = b  # f's critical point when f' changes sign in [a, b]: the two pieces [a, split], [split, b]
     if (d1a < 0.0 < d1b) or (d1a > 0.0 > d1b):
         split = _brentq(df_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
-    for s, e in ((a, split), (split, b)):
+    # f at the pieces' ends: fa, fb are _trig012's values there, bit for bit those of _trig (order 0)
+    f_split = fb if split == b else (fa if split == a else _trig(tr, i, split, 0, sign))
+    for s, e, fs, fe in ((a, split, fa, f_split), (split, b, f_split, fb)):
         if s >= e:
             continue
-        fs, fe = _trig(tr, i, s, 0, sign), _trig(tr, i, e, 0, sign)
         if fs > 0.0 and fe < 0.0:
-            return _brentq(f_code, p, st, tr, i, 0, s, e, _xtol(s, e, 0.0), _RTOL)
+            return _brentq_from(f_code, p, st, tr, i, 0, s, e, fs, fe, _xtol(s, e, 0.0), _RTOL)
         if fs > 0.0 and fe == 0.0 and _trig(tr, i, e, 1, sign) < 0.0:
             return e
     return math.inf

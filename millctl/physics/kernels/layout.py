@@ -157,11 +157,14 @@ def scene_row(scene: Scene) -> FloatArray:
     )
 
 
-# a trig sum c + Σ a_k cos(w_k t + φ_k) as a row: [c, number of terms, a_0..a_5, w_0..w_5, φ_0..φ_5]
+# a trig sum c + Σ a_k cos(w_k t + φ_k) as a row: [c, number of terms, a_0..a_5, w_0..w_5, φ_0..φ_5], then
+# N's own form (:func:`.trig._fill_trig_rows`): 1.0 if the row is N/m = c − (g − κ sin α) sin θ, θ = ω_r t + θ0 and
+# α = ω_v t + α0 (eq. 7's form, two sines and cosines an evaluation instead of three), κ, θ0, ω_v, α0
 _T_COUNT, _TA, _TW, _TP = 1, 2, 8, 14
+_T_N_FORM, _T_KAPPA, _T_TH0, _T_WV, _T_A0 = 20, 21, 22, 23, 24
 
 
-_TRIG_COLUMNS = 20
+_TRIG_COLUMNS = 25
 
 
 TELEMETRY = (

@@ -43,10 +43,16 @@ def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
 @leaf_kernel
 def _brentq(code, p, st, tr, i, j, xa, xb, xtol, rtol):  # type: ignore[no-untyped-def]
     """Brent's method, scipy's brentq (Zeros/brentq.c), on _f; a bracket without a sign change returns its left end."""
+    fa, fb = _f(code, p, st, tr, i, j, xa), _f(code, p, st, tr, i, j, xb)
+    return _brentq_from(code, p, st, tr, i, j, xa, xb, fa, fb, xtol, rtol)
+
+
+@leaf_kernel
+def _brentq_from(code, p, st, tr, i, j, xa, xb, fa, fb, xtol, rtol):  # type: ignore[no-untyped-def]
+    """:func:`_brentq` given fa, fb = _f at xa, xb, as the caller has them (the same root, two evaluations fewer)."""
     xpre, xcur = xa, xb
     xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    fpre = _f(code, p, st, tr, i, j, xpre)
-    fcur = _f(code, p, st, tr, i, j, xcur)
+    fpre, fcur = fa, fb
     if fpre == 0.0:
         return xpre
     if fcur == 0.0:

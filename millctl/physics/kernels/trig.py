@@ -2,7 +2,8 @@
 
 N/m = r0 ω_r² − g_eff sin θ (corrected) or the paper's eq. 7 form 2 r0 ω_r² − (g − (ω_v² − k/m) r_d sin α) sin θ,
 with sin α sin θ = ½[cos(α − θ) − cos(α + θ)] and −g sin θ = g cos(θ + π/2): three terms per rod
-(:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form).
+(:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form). A rod's N row is marked
+(``_T_N_FORM``) and evaluated in the product form instead (:func:`_n_form012`): two sine–cosine pairs, not three.
 """
 
 from __future__ import annotations
@@ -19,7 +20,12 @@ from millctl.physics.kernels.layout import (
     _PAPER,
     _R0,
     _RD,
+    _T_A0,
     _T_COUNT,
+    _T_KAPPA,
+    _T_N_FORM,
+    _T_TH0,
+    _T_WV,
     _TA,
     _TH0,
     _TP,
@@ -57,6 +63,8 @@ def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
         _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
         _set_term(rows, i, 1, half, wv - wr, a0 - th0)
         _set_term(rows, i, 2, -half, wv + wr, a0 + th0)
+        rows[i, _T_N_FORM], rows[i, _T_KAPPA], rows[i, _T_TH0] = 1.0, coupling, th0
+        rows[i, _T_WV], rows[i, _T_A0] = wv, a0
 
 
 @njit(cache=True, error_model="numpy")
@@ -68,8 +76,44 @@ def _trig_rows(p, n, out=None):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
+def _n_form012(tr, i, t):  # type: ignore[no-untyped-def]
+    """N/m of an N row and its first two time derivatives in eq. 7's form: two sine–cosine pairs, not three.
+
+    N/m = c − G sin θ with G = g − κ sin α, θ = ω_r t + θ0, α = ω_v t + α0 (the three cosines of the row
+    are this by sin α sin θ = ½[cos(α − θ) − cos(α + θ)]); G′ = −κ ω_v cos α, G″ = κ ω_v² sin α.
+    """
+    w_r, w_v, kappa = tr[i, _TW], tr[i, _T_WV], tr[i, _T_KAPPA]
+    theta = w_r * t + tr[i, _T_TH0]
+    alpha = w_v * t + tr[i, _T_A0]
+    s_th, c_th = math.sin(theta), math.cos(theta)
+    s_al, c_al = math.sin(alpha), math.cos(alpha)
+    g_eff = tr[i, _TA] - kappa * s_al
+    d_g = -kappa * w_v * c_al
+    d2_g = kappa * w_v * w_v * s_al
+    f0 = tr[i, 0] - g_eff * s_th
+    f1 = -d_g * s_th - g_eff * w_r * c_th
+    f2 = -d2_g * s_th - 2.0 * d_g * w_r * c_th + g_eff * w_r * w_r * s_th
+    return f0, f1, f2
+
+
+@leaf_kernel
+def _n_form01(tr, i, t, order):  # type: ignore[no-untyped-def]
+    """N/m of an N row (order 0) or its time derivative (order 1), as :func:`_n_form012`."""
+    w_r, w_v, kappa = tr[i, _TW], tr[i, _T_WV], tr[i, _T_KAPPA]
+    theta = w_r * t + tr[i, _T_TH0]
+    alpha = w_v * t + tr[i, _T_A0]
+    s_th, s_al = math.sin(theta), math.sin(alpha)
+    g_eff = tr[i, _TA] - kappa * s_al
+    if order == 0:
+        return tr[i, 0] - g_eff * s_th
+    return kappa * w_v * math.cos(alpha) * s_th - g_eff * w_r * math.cos(theta)
+
+
+@leaf_kernel
 def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
     """Sign × the order-th time derivative of row i at t."""
+    if order <= 1 and tr[i, _T_N_FORM] != 0.0:
+        return sign * _n_form01(tr, i, t, order)
     total = tr[i, 0] if order == 0 else 0.0
     shift = 0.5 * math.pi * order
     for k in range(int(tr[i, _T_COUNT])):
@@ -81,6 +125,9 @@ def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
 @leaf_kernel
 def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
     """Sign × (value, first, second derivative) of row i at t: one sine and cosine per term serve all three."""
+    if tr[i, _T_N_FORM] != 0.0:
+        f0, f1, f2 = _n_form012(tr, i, t)
+        return sign * f0, sign * f1, sign * f2
     f0, f1, f2 = tr[i, 0], 0.0, 0.0
     for k in range(int(tr[i, _T_COUNT])):
         a, w = tr[i, _TA + k], tr[i, _TW + k]
