@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from millctl.cli.output import print_json, stderr_console, stdout_console
 from millctl.errors import ExitCode
+
+if TYPE_CHECKING:
+    from millctl.protocol.bus_check import BusCheckReport
 
 
 def _positive_int(text: str) -> int:
@@ -155,7 +158,7 @@ def _check(args: argparse.Namespace) -> int:
     return int(ExitCode.OK if report.ok else ExitCode.BUS)
 
 
-def _check_furnace_channel(config: Any, listen_s: float) -> Any:
+def _check_furnace_channel(config: Any, listen_s: float) -> BusCheckReport | None:
     """The furnace node's own channel beside CiA 402 drives (``[drives.furnace_bus]``) as millbus checks it; or None."""
     from millctl.protocol import default_codec, open_bus
     from millctl.protocol.bus_check import check_bus

@@ -113,6 +113,10 @@ def _monitor(args: argparse.Namespace) -> int:
     from millctl.config import load_config
     from millctl.protocol import open_bus
 
+    if args.json and args.duration_s <= 0:
+        # the document lists every frame heard: without an end, a busy or babbling bus grows it without bound
+        raise InvalidInputError("bus monitor --json needs --duration-s S > 0: its one JSON document lists every "
+                                "frame heard, printed when the monitor stops")
     describe, frames = _describer(args), _Frames(args)
     bus_config = load_config(args.config).config.bus
     bus = open_bus(bus_config)

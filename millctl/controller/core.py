@@ -70,7 +70,13 @@ class ControllerCore:
         codec: Codec | None = None,
         listener: EventListener | None = None,
         drives: DrivesBackend | None = None,
+        furnace_bus: can.BusABC | None = None,
     ) -> None:
+        """Bind the controller to ``bus`` and ``clock``; open the configured drives unless ``drives`` is given.
+
+        ``furnace_bus``: the furnace node's channel beside CiA 402 drives, opened (and shut) by the caller; None:
+        the backend opens ``[drives.furnace_bus]`` itself when configured (``drives.registry.open_drives``).
+        """
         self.config = config
         self.bus = bus
         self.clock = clock
@@ -78,7 +84,8 @@ class ControllerCore:
         self.listener = listener
         self.envelope = Envelope.from_config(config)
         self.drives: DrivesBackend = (
-            drives if drives is not None else open_drives(config, bus, self.codec, self.envelope)
+            drives if drives is not None else open_drives(config, bus, self.codec, self.envelope,
+                                                          furnace_bus=furnace_bus)
         )
         """The drives, through the one boundary the backends share (:mod:`millctl.drives.base`)."""
         self.planner = RampPlanner.from_config(config, self.envelope)

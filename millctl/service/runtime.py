@@ -32,10 +32,8 @@ from millctl.clock import Clock, MonotonicClock
 from millctl.config.loader import LoadedConfig
 from millctl.config.paths import service_paths
 from millctl.controller import STANDSTILL_RPM, Controller, ControllerState
-from millctl.drives.registry import open_drives
-from millctl.protocol import RotatingBusLog, default_codec, open_bus
+from millctl.protocol import RotatingBusLog, open_bus
 from millctl.records import RecordQueue
-from millctl.safety import Envelope
 from millctl.service.commands import (
     COMMAND_QUEUE_SIZE,
     COMMAND_TIMEOUT_S,
@@ -110,13 +108,11 @@ class ServiceRuntime:
         self.bus = TappedBus(open_bus(config.bus), bus_log, channel=config.bus.channel, records=self.records)
         self.furnace_bus: TappedBus | None = None
         """The furnace node's own channel beside CiA 402 drives, in the same bus log under its channel's name."""
-        drives = None
         if config.drives.furnace_bus is not None:
             furnace = config.drives.furnace_bus
             self.furnace_bus = TappedBus(open_bus(furnace), bus_log, channel=furnace.channel, records=self.records)
-            drives = open_drives(config, self.bus, default_codec(), Envelope.from_config(config),
-                                 furnace_bus=self.furnace_bus)
-        self.controller = Controller(config, self.bus, self.clock, listener=self.journal.on_event, drives=drives)
+        self.controller = Controller(config, self.bus, self.clock, listener=self.journal.on_event,
+                                     furnace_bus=self.furnace_bus)
         self.node: Any = None
         self._node_bus: can.BusABC | None = None
         if embeds_node(config, embed_node):

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import can
 import pytest
 
+from millctl.cli import main
 from millctl.drives.cia402.frames import describe_canopen, describe_frame
+from millctl.errors import ExitCode
 from millctl.protocol import CommandCode, default_codec
 from millctl.protocol.messages import Command
 
@@ -48,3 +52,10 @@ def test_on_a_cia402_bus_canopen_comes_first_and_millbus_frames_are_still_read()
 
 def test_an_id_outside_the_predefined_set_is_a_question_mark() -> None:
     assert describe_canopen(_frame(0x7E5, "00")) == "?"
+
+
+def test_bus_monitor_json_without_an_end_is_refused_before_the_bus_opens(capsys: pytest.CaptureFixture[str]) -> None:
+    """Its one document lists every frame heard: with no --duration-s a babbling bus would grow it without bound."""
+    assert main(["bus", "monitor", "--json"]) == ExitCode.INVALID_INPUT
+    document = json.loads(capsys.readouterr().out)
+    assert document["ok"] is False and "--duration-s" in document["error"]["message"]
