@@ -30,6 +30,7 @@ by disarming would hand the next scenario a mill that fails for a reason of its 
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,7 +39,8 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from millctl.errors import MillctlError
-from millctl.protocol import SimFaultCode
+from millctl.protocol import DriveTelemetry, SimFaultCode
+from tests.hil.probe import is_kind
 from tests.hil.scenario_support import Mill, bound_scale, wait_for
 
 if TYPE_CHECKING:
@@ -50,6 +52,10 @@ RESET_TIMEOUT_S = 30.0
 """How long (s, idle host; scaled like every wait) the mill may take to come back to rest and DISABLED."""
 SCALE_DRIFT = 1.25
 """In the VM, a mill configured at a time scale more than this factor below the test's own is restarted."""
+REST_TIME_CONSTANTS = 3.0
+"""A mill is handed on once both speeds have read exactly 0, without a break, for this many of the slower
+drive's time constants (plus two telemetry periods): whatever speed was left when they last read
+otherwise has decayed to e⁻³ of it (:class:`RestWatch`)."""
 
 
 OPEN_POOLS: list[MillPool] = []
@@ -159,6 +165,8 @@ class MillPool:
         if mill.status()["state"] == "ARMED":
             client.disarm()
         _wait(mill, lambda: _as_fresh(mill.status()), "the controller and the node DISABLED with no fault at rest")
+        rest = RestWatch(mill)
+        _wait(mill, rest, f"both speeds to read exactly 0 for {rest.window_s:.2f} s")
         client.release_control()
         status = mill.status()
         problem = _as_fresh(status)
@@ -222,11 +230,9 @@ def _reset_taken(mill: Mill) -> bool:
 def _as_fresh(status: dict[str, Any]) -> bool | None:
     """True when ``status`` is what a freshly started mill reports (None otherwise: the wait goes on).
 
-    At rest means both speeds read exactly 0: the simulated encoders read 0 once a rotor is at rest
-    (firmware_sim/drives.py) and noisy values while it coasts down (noise σ up to 1 rpm), so a single
-    reading below ``scenario_support.STANDSTILL_RPM`` could hand the next scenario a coasting drive that
-    read above it after its ARM (tests/hil/test_scenarios.py::test_over_limit_setpoint_refused_by_the_controller
-    failed so in CI on udp_multicast).
+    Both speeds reading exactly 0 is necessary, not sufficient: a simulated encoder reads 0 at rest
+    and ``max(0, ω + noise)`` while turning (firmware_sim/drives.py, noise σ up to 1 rpm), so a drive
+    still coasting at 0.5 rpm reads 0 one time in three. :class:`RestWatch` waits for the rest.
     """
     fresh = (
         status["state"] == "DISABLED"
@@ -241,4 +247,47 @@ def _as_fresh(status: dict[str, Any]) -> bool | None:
     return True if fresh else None
 
 
-__all__ = ["MillKind", "MillPool"]
+class RestWatch:
+    """A wait condition: True once both drives have read exactly 0, without a break, for :attr:`window_s`.
+
+    The node ends a controlled stop, and accepts DISARM, once the drives are within the measurement
+    tolerance of rest (firmware_sim/node.py ``_at_rest``), so a mill can be DISABLED with a drive still
+    coasting, and its encoder's noise (clamped at 0) reads 0 often enough to pass one look. A drive
+    coasting at 0.5 rpm handed on so read 1.8 rpm in the next scenario
+    (test_scenarios.py::test_over_limit_setpoint_refused_by_the_controller, in CI and under two CPU
+    hogs). With a probe the window is judged from every DriveTelemetry frame it captured since the
+    scenario began (no wait at all when the drives never moved); without one, from the status polls.
+    """
+
+    def __init__(self, mill: Mill) -> None:
+        self.mill = mill
+        drives = mill.config.drives
+        slowest_s = max(drives.rotary.time_constant_s, drives.vibration.time_constant_s)
+        period_s = mill.codec.cycle_time_s(DriveTelemetry)
+        assert period_s is not None, "DriveTelemetry has no cycle time in the DBC"
+        self.window_s = REST_TIME_CONSTANTS * slowest_s + mill.bounds.scaled(2.0 * period_s)
+        self._zero_since: float | None = None
+
+    def __call__(self) -> bool:
+        probe = self.mill.probe
+        if probe is not None:
+            frames = probe.frames(where=is_kind(DriveTelemetry))
+            moving = [s.t for s in frames if _speeds(s.of(DriveTelemetry)) != (0.0, 0.0)]
+            if not frames or (moving and moving[-1] == frames[-1].t):
+                return False
+            return not moving or bool(probe.now() - moving[-1] >= self.window_s)
+        status = self.mill.status()
+        now = time.monotonic()
+        if (float(status["measured_rotary_rpm"]), float(status["measured_vibration_rpm"])) != (0.0, 0.0):
+            self._zero_since = None
+            return False
+        if self._zero_since is None:
+            self._zero_since = now
+        return now - self._zero_since >= self.window_s
+
+
+def _speeds(telemetry: DriveTelemetry) -> tuple[float, float]:
+    return float(telemetry.rotary_rpm), float(telemetry.vibration_rpm)
+
+
+__all__ = ["MillKind", "MillPool", "RestWatch"]
