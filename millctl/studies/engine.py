@@ -181,32 +181,39 @@ def _group_config(base: dict[str, Any], params: dict[str, ParamValue], variant: 
 
 def _violations_arrays(
     points: PointArrays, rotary_rpm: FloatArray, vibration_rpm: FloatArray, c: ConstraintSpec
-) -> list[str]:
-    """:func:`violations` of every point of a group, formed only where a bound is broken."""
+) -> NDArray[np.object_]:
+    """:func:`violations` of every point of a group ("" where none), formed only where a bound is broken.
+
+    Texts and lists are made for the broken points alone: a map of 10⁴ points otherwise allocates 10⁴ lists, enough
+    to trigger a full garbage collection over numba's object graph (~70 ms, more than the level-(b) kernel's work).
+    """
     config = points.config
-    found: list[list[str]] = [[] for _ in range(points.size)]
+    found: dict[int, list[str]] = {}
+    # the texts format Python floats: a numpy scalar's format costs ~10× more, and a map may break a bound at
+    # thousands of points
+    w_r, w_v = rotary_rpm.tolist(), vibration_rpm.tolist()
 
     def add(broken: NDArray[np.bool_], text: Callable[[int], str]) -> None:
-        for i in np.flatnonzero(broken):
-            found[int(i)].append(text(int(i)))
+        for i in np.flatnonzero(broken).tolist():
+            found.setdefault(i, []).append(text(i))
 
     if c.law != "none":
         law = LimitLaw(c.law)
         limit = np.asarray(rad_s_to_rpm(omega_r_max(law, points.limit_params, rpm_to_rad_s(vibration_rpm))))
-        allowed = (1.0 - config.interlock.margin) * limit
-        add(rotary_rpm > allowed, lambda i: (
-            f"ω_r = {rotary_rpm[i]:.1f} rpm > {allowed[i]:.1f} rpm allowed by {law.value} "
-            f"at ω_v = {vibration_rpm[i]:.0f} rpm"
+        allowed_rpm = (1.0 - config.interlock.margin) * limit
+        allowed = allowed_rpm.tolist()
+        add(rotary_rpm > allowed_rpm, lambda i: (
+            f"ω_r = {w_r[i]:.1f} rpm > {allowed[i]:.1f} rpm allowed by {law.value} at ω_v = {w_v[i]:.0f} rpm"
         ))  # fmt: skip
     if c.drives:
         rotary, vibration = config.drives.rotary.max_speed_rpm, config.drives.vibration.max_speed_rpm
-        add(rotary_rpm > rotary, lambda i: f"ω_r = {rotary_rpm[i]:.1f} rpm > rotary drive maximum {rotary:g} rpm")
+        add(rotary_rpm > rotary, lambda i: f"ω_r = {w_r[i]:.1f} rpm > rotary drive maximum {rotary:g} rpm")
         add(vibration_rpm > vibration, lambda i: (
-            f"ω_v = {vibration_rpm[i]:.1f} rpm > vibration drive maximum {vibration:g} rpm"
+            f"ω_v = {w_v[i]:.1f} rpm > vibration drive maximum {vibration:g} rpm"
         ))  # fmt: skip
     if c.max_vibration_rpm is not None:
         bound = c.max_vibration_rpm
-        add(vibration_rpm > bound, lambda i: f"ω_v = {vibration_rpm[i]:.1f} rpm > structural limit {bound:g} rpm")
+        add(vibration_rpm > bound, lambda i: f"ω_v = {w_v[i]:.1f} rpm > structural limit {bound:g} rpm")
     if c.max_spring_force_n is not None:
         force = config.mill.spring.stiffness_n_per_m * config.mill.cam.eccentricity_m
         if force > c.max_spring_force_n:
@@ -214,9 +221,12 @@ def _violations_arrays(
             add(np.ones(points.size, dtype=bool), lambda _i: text)
     if c.cam_contact or c.contact_fatigue:
         structural = structural_violation_texts(config, vibration_rpm, c.cam_contact, c.contact_fatigue)
-        for row, texts in zip(found, structural, strict=True):
-            row += texts
-    return ["; ".join(v) for v in found]
+        for i, texts in structural.items():
+            found.setdefault(i, []).extend(texts)
+    reasons = np.full(points.size, "", dtype=object)
+    for i, texts in found.items():
+        reasons[i] = "; ".join(texts)
+    return reasons
 
 
 def _group_metrics(
@@ -318,7 +328,7 @@ def evaluate_arrays(
         out["events"][where] = events
         reasons = _violations_arrays(group, rotary[where], vibration[where], constraints)
         out["violations"][where] = reasons
-        out["feasible"][where] = [not r for r in reasons]
+        out["feasible"][where] = reasons == ""
         for i, message in failed.items():  # as a mill that cannot exist: no metric, no events, the reason
             j = int(where[i])
             for name in metrics:

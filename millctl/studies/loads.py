@@ -53,27 +53,27 @@ def structural_metrics(config: MillConfig, omega_r_rad_s: ArrayLike, omega_v_rad
 
 def structural_violation_texts(
     config: MillConfig, omega_v_rpm: ArrayLike, cam_contact: bool, contact_fatigue: bool
-) -> list[list[str]]:
-    """The structural constraints broken at each cam speed of an array (rpm): one list of texts per point.
+) -> dict[int, list[str]]:
+    """The structural constraints broken at each cam speed of an array (rpm): the texts of each point that breaks one.
 
-    Vectorised over the points (the array engine's form); each text says the value, the bound and
-    where to read more.
+    Vectorised over the points (the array engine's form), keyed by the point's index (a point that breaks none
+    has no entry); each text says the value, the bound and where to read more.
     """
     p = st.StructureParams.from_config(config)
     w_v_rpm = np.atleast_1d(np.asarray(omega_v_rpm, dtype=float))
     f_min, f_max = st.cam_contact_force_range_n(p, w_v_rpm * math.pi / 30.0)
     pressure = st.cam_contact_pressure_pa(p, f_max)
     jump = float(rad_s_to_rpm(st.follower_jump_rad_s(p)))
-    found: list[list[str]] = [[] for _ in range(w_v_rpm.size)]
-    for i in np.flatnonzero(f_min < 0.0) if cam_contact else ():
-        found[i].append(
-            f"cam contact force min {f_min[i]:.3g} N < 0 at ω_v = {w_v_rpm[i]:.0f} rpm: the roller leaves the cam "
-            f"above {jump:.1f} rpm (docs/model.md#structural-loads)"
+    found: dict[int, list[str]] = {}
+    for i in np.flatnonzero(f_min < 0.0).tolist() if cam_contact else ():
+        found.setdefault(i, []).append(
+            f"cam contact force min {float(f_min[i]):.3g} N < 0 at ω_v = {float(w_v_rpm[i]):.0f} rpm: the roller "
+            f"leaves the cam above {jump:.1f} rpm (docs/model.md#structural-loads)"
         )
-    for i in np.flatnonzero(pressure > p.endurance_pa) if contact_fatigue else ():
-        found[i].append(
-            f"cam contact pressure {pressure[i] / 1e6:.4g} MPa > endurance limit {p.endurance_pa / 1e6:g} MPa "
-            f"at ω_v = {w_v_rpm[i]:.0f} rpm (docs/model.md#structural-loads)"
+    for i in np.flatnonzero(pressure > p.endurance_pa).tolist() if contact_fatigue else ():
+        found.setdefault(i, []).append(
+            f"cam contact pressure {float(pressure[i]) / 1e6:.4g} MPa > endurance limit {p.endurance_pa / 1e6:g} MPa "
+            f"at ω_v = {float(w_v_rpm[i]):.0f} rpm (docs/model.md#structural-loads)"
         )
     return found
 
@@ -82,7 +82,7 @@ def structural_violations(
     config: MillConfig, omega_v_rpm: float, cam_contact: bool, contact_fatigue: bool
 ) -> list[str]:
     """The structural constraints one cam speed (rpm) breaks (:func:`structural_violation_texts` of one point)."""
-    return structural_violation_texts(config, omega_v_rpm, cam_contact, contact_fatigue)[0]
+    return structural_violation_texts(config, omega_v_rpm, cam_contact, contact_fatigue).get(0, [])
 
 
 def _rod_wall(model: MillModel) -> tuple[float, float, float, float]:

@@ -21,6 +21,8 @@ from millctl.physics.kernels.layout import (
     _RR,
     _RTOL,
     _S_FLY,
+    _S_PC,
+    _S_PS,
     _S_T0,
     _TWO_PI,
     _WR,
@@ -28,8 +30,8 @@ from millctl.physics.kernels.layout import (
     WALL,
     leaf_kernel,
 )
-from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _rel, _zero_length_departure
-from millctl.physics.kernels.roots import _brentq_from, _f, _xtol
+from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _zero_length_departure
+from millctl.physics.kernels.roots import _brentq_from, _f, _f_and_slope, _newton_from, _xtol
 
 
 @leaf_kernel
@@ -49,13 +51,32 @@ def _scan_step_s(p):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
-def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
-    """Exact contact time in [a, b] of one candidate interval, or inf (a minimum that stays apart)."""
-    f_b = _f(_F_SIGN_SEP, p, st, tr, i, j, b)
+def _resolve(p, st, tr, i, j, a, b, tol, s_a, ds_a):  # type: ignore[no-untyped-def]
+    """Exact contact time in [a, b] of one candidate interval, or inf (a minimum that stays apart).
+
+    ``s_a``, ``ds_a``: the scan's separation and its slope at a when the separation is certainly positive (≥ the
+    scan's near-zero band, far above the phasors' drift), else nan: a rod pair's sign change is then bracketed
+    without evaluating a again, and its root finder starts from the cubic through both ends.
+    A rod pair's contact is found by Newton's method (its separation's slope comes with it, :func:`_pair`), the
+    wall's by Brent's on the departure gap, whose triple root at the departure is divided out.
+    """
+    if j == WALL:
+        f_b = _f(_F_SIGN_SEP, p, st, tr, i, j, b)
+        db = math.nan
+    else:
+        f_b, db = _f_and_slope(_F_SIGN_SEP, p, st, tr, i, j, b)
     if f_b <= 0.0:
-        f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
-        return _brentq_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, f_b, _xtol(a, b, tol), _RTOL)
-    da, db = _f(_F_DSEP, p, st, tr, i, j, a), _f(_F_DSEP, p, st, tr, i, j, b)
+        if j == WALL:
+            f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
+            return _brentq_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, f_b, _xtol(a, b, tol), _RTOL)
+        if s_a > 0.0:
+            f_a, da = s_a, ds_a
+        else:
+            f_a, da = _f_and_slope(_F_SIGN_SEP, p, st, tr, i, j, a)
+        return _newton_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, da, f_b, db, _xtol(a, b, tol), _RTOL)
+    da = _f(_F_DSEP, p, st, tr, i, j, a)
+    if j == WALL:
+        db = _f(_F_DSEP, p, st, tr, i, j, b)
     if da < 0.0 < db:
         t_m = _brentq_from(_F_DSEP, p, st, tr, i, j, a, b, da, db, _xtol(a, b, 0.0), _RTOL)
         f_m = _f(_F_SIGN_SEP, p, st, tr, i, j, t_m)
@@ -63,6 +84,21 @@ def _resolve(p, st, tr, i, j, a, b, tol):  # type: ignore[no-untyped-def]
             f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
             return _brentq_from(_F_SIGN_SEP, p, st, tr, i, j, a, t_m, f_a, f_m, _xtol(a, t_m, tol), _RTOL)
     return math.inf
+
+
+@leaf_kernel
+def _tangent_bound(s_a, ds_a, s_b, ds_b, width, curvature):  # type: ignore[no-untyped-def]
+    """A lower bound on s over a step of ``width`` from its values and slopes at both ends and |s″| ≤ ``curvature``.
+
+    s(a + u) ≥ P_a(u) = s_a + s′_a u − ½Cu² and s(b − w) ≥ P_b = s_b − s′_b w − ½Cw² (Taylor with the bound on
+    s″): s ≥ max(P_a, P_b), two concave parabolas whose difference is linear in u, so the max is least at an end
+    of the step or where they cross; with s′_a < 0 < s′_b they cross once.
+    """
+    crossing = (s_a - s_b + ds_b * width + 0.5 * curvature * width * width) / (ds_b - ds_a + curvature * width)
+    bound = min(s_a, s_b)
+    if 0.0 < crossing < width:
+        bound = min(bound, s_a + ds_a * crossing - 0.5 * curvature * crossing * crossing)
+    return bound
 
 
 @leaf_kernel
@@ -92,8 +128,22 @@ def _apart_for(wall, gap, dist, radial, v2, accel_fly, accel_held, st, j):  # ty
 
 
 @leaf_kernel
-def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: ignore[no-untyped-def]
-    """(time, rod, partner) of the first contact of a flying rod in [t_start, t_end]; time inf if none."""
+def _scan_steps(p):  # type: ignore[no-untyped-def]
+    """The contact scan's step h (:func:`_scan_step_s`) and the turns of one step, cos, sin of ω_r h and of ω_v h.
+
+    The same for every scan of a scene: :func:`.events._event` takes them once and hands them to each.
+    """
+    h = _scan_step_s(p)
+    return h, math.cos(p[_WR] * h), math.sin(p[_WR] * h), math.cos(p[_WV] * h), math.sin(p[_WV] * h)
+
+
+@leaf_kernel
+def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch, steps):  # type: ignore[no-untyped-def]
+    """(time, rod, partner) of the first contact of a flying rod in [t_start, t_end]; time inf if none.
+
+    ``steps``: :func:`_scan_steps` of the scene. A held rod's position comes from its state's angle at t = 0
+    (``_S_PC``, ``_S_PS``), a flying rod's from eq. 10 (:func:`.motion._flying_rel`).
+    """
     pairs, pair_ids, rods, rod_ids = scratch[0], scratch[1], scratch[2], scratch[3]
     pi, pj = pair_ids[:, 0], pair_ids[:, 1]
     count = 0
@@ -113,11 +163,17 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: igno
     # a held rod's position later is its position at t_start turned by ω_r(t − t_start); a flying rod's needs
     # cos, sin of ω_v(t − t0): both are phasors advanced by one step's turn, recomputed every _RESYNC steps
     pos, phasor = rods[:, 0:4], rods[:, 4:6]
+    w_r, r0 = p[_WR], p[_R0]
+    cos_start, sin_start = math.cos(w_r * t_start), math.sin(w_r * t_start)
     for r in range(n):
-        pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _rel(p, st, r, t_start)
-        if st[r, _S_FLY] == 0.0:
-            phasor[r, 0], phasor[r, 1] = pos[r, 0], pos[r, 1]
-    r0 = p[_R0]
+        if st[r, _S_FLY] == 0.0:  # its angle at t = 0 turned by ω_r t_start: one sine and cosine for every held rod
+            xh, yh = _turned(r0 * st[r, _S_PC], r0 * st[r, _S_PS], cos_start, sin_start)
+            pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = xh, yh, -w_r * yh, w_r * xh
+            phasor[r, 0], phasor[r, 1] = xh, yh
+        else:  # the cam's turn since departure, cos and sin, is the flying rod's phasor
+            tau = t_start - st[r, _S_T0]
+            phasor[r, 0], phasor[r, 1] = math.cos(p[_WV] * tau), math.sin(p[_WV] * tau)
+            pos[r, 0], pos[r, 1], pos[r, 2], pos[r, 3] = _flying_rel(p, st, r, tau, phasor[r, 0], phasor[r, 1])
     c2 = 4.0 * p[_RR] * p[_RR]
     s_prev, ds_prev, v2_prev, safe_until, stale = pairs[:, 0], pairs[:, 1], pairs[:, 2], pairs[:, 3], pairs[:, 4]
     for k in range(count):
@@ -136,19 +192,13 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: igno
         if touching:
             return t_start, i, j
         s_prev[k], ds_prev[k], v2_prev[k] = s, ds, vx * vx + vy * vy
-    h = _scan_step_s(p)
+    h, cos_step_r, sin_step_r, cos_step_v, sin_step_v = steps
     accel = 2.0 * max(p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR])
     # bounds on the relative acceleration of a pair in the vial frame (the wall is at rest there)
     accel_fly, accel_held = p[_G] + p[_RD] * p[_WV] * p[_WV], p[_R0] * p[_WR] * p[_WR]
     near = _NEAR_ZERO * r0 * r0
-    w_r, w_v = p[_WR], p[_WV]
-    cos_step_r, sin_step_r = math.cos(w_r * h), math.sin(w_r * h)
-    cos_step_v, sin_step_v = math.cos(w_v * h), math.sin(w_v * h)
+    w_v = p[_WV]
     cos_turn, sin_turn = 1.0, 0.0
-    for r in range(n):
-        if st[r, _S_FLY] != 0.0:
-            x = w_v * (t_start - st[r, _S_T0])
-            phasor[r, 0], phasor[r, 1] = math.cos(x), math.sin(x)
     safe_until[:count] = t_start
     stale[:count] = 0.0
     filled_at = rod_ids
@@ -204,16 +254,22 @@ def _earliest_contact(p, st, tr, n, t_start, t_end, tol, scratch):  # type: igno
             if stale[k] != 0.0:
                 stale[k] = 0.0  # the interval since the last sample lies where the pair is provably apart
             else:
-                v = math.sqrt(max(v2, v2_prev[k]))
-                margin = 2.0 * ((v + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel) * h * h / 8.0
-                hit = s <= 0.0 or abs(s) < near or (ds_prev[k] < 0.0 < ds and min(s_prev[k], s) <= margin)
+                hit = s <= 0.0 or abs(s) < near
+                if not hit and ds_prev[k] < 0.0 < ds:  # a minimum in the step: may it reach zero?
+                    v = math.sqrt(max(v2, v2_prev[k]))
+                    curvature = 2.0 * ((v + 2.0 * accel * h) ** 2 + 4.0 * r0 * accel)  # ≥ |s″| on the step
+                    if min(s_prev[k], s) <= curvature * h * h / 8.0:
+                        # resolved unless the tangents at the step's ends prove the pair apart
+                        hit = _tangent_bound(s_prev[k], ds_prev[k], s, ds, t_k - t_prev, curvature) <= near
                 if hit and t_k > t_prev:
-                    t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, tol)
+                    s_a, ds_a = (s_prev[k], ds_prev[k]) if s_prev[k] >= near else (math.nan, math.nan)
+                    t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, tol, s_a, ds_a)
                     if tol > 0.0 and best_k >= 0 and abs(t_hit - best) <= 2.0 * tol:
                         # two contacts closer than the tolerance: which is first is decided at full precision
-                        t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, 0.0)
+                        t_hit = _resolve(p, st, tr, i, j, t_prev, t_k, 0.0, s_a, ds_a)
                         if not best_exact:
-                            best = _resolve(p, st, tr, pi[best_k], pj[best_k], t_prev, t_k, 0.0)
+                            pair_i, pair_j = pi[best_k], pj[best_k]
+                            best = _resolve(p, st, tr, pair_i, pair_j, t_prev, t_k, 0.0, math.nan, math.nan)
                             best_exact = True
                     elif t_hit < best:
                         best_exact = False

@@ -109,7 +109,10 @@ def _cell_test(tr, i, sign, a, b, depth, m2, m3):  # type: ignore[no-untyped-def
     """[a, b] at this depth: certified positive (Taylor bound), searched whole (f″ of one sign, or deep), or split."""
     h = b - a
     f0, f1, f2 = _trig012(tr, i, 0.5 * (a + b), sign)
-    if f0 - abs(f1) * 0.5 * h - m2 * h * h * 0.125 > 0.0:
+    linear = f0 - abs(f1) * 0.5 * h
+    # Taylor about the midpoint, |u| ≤ h/2: f ≥ f0 − |f′|h/2 − max|f″| h²/8, or with f″ there and max|f‴|:
+    # f ≥ f0 − |f′|h/2 + min(f″, 0) h²/8 − max|f‴| h³/48; either bound above zero certifies the cell
+    if linear - m2 * h * h * 0.125 > 0.0 or linear + min(f2, 0.0) * h * h * 0.125 - m3 * h * h * h / 48.0 > 0.0:
         return _CELL_POSITIVE
     if abs(f2) > m3 * 0.5 * h or depth >= _SPLIT_DEPTH:
         return _CELL_MONOTONE
@@ -164,25 +167,39 @@ def _window_s(p):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
-def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
-    """A time up to which f > 0 is certified from t on by its first term alone, else t.
+def _held_edge(tr, i):  # type: ignore[no-untyped-def]
+    """Half-width (rad of the first term's phase) of the arc where row i's first term alone keeps it > 0.
 
     f = c + a_0 cos(w_0 t + φ_0) + (other terms, ≤ Σ|a_k| together) > 0 while
-    cos(w_0 t + φ_0) > q = (Σ_{k≥1}|a_k| − c)/a_0; for N/m, a_0 cos(…) = g cos(θ + π/2) is the slow
-    part, so this is the arc of the wall where no cam phase can detach the rod.
+    cos(w_0 t + φ_0) > q = (Σ_{k≥1}|a_k| − c)/a_0: the arc |w_0 t + φ_0| < acos q (mod 2π). For N/m,
+    a_0 cos(…) = g cos(θ + π/2) is the slow part, so this is the arc of the wall where no cam phase can detach
+    the rod. −1: no such arc; inf: every time.
     """
     w, g = tr[i, _TW], tr[i, _TA]
     if w <= 0.0 or g <= 0.0:
-        return t
+        return -1.0
     rest = 0.0
     for k in range(1, int(tr[i, _T_COUNT])):
         rest += abs(tr[i, _TA + k])
     q = (rest - tr[i, 0]) / g
     if q >= 1.0:
-        return t
+        return -1.0
     if q < -1.0:
         return math.inf
-    edge = math.acos(q)
+    return math.acos(q)
+
+
+@leaf_kernel
+def _held_until(tr, i, t, edge):  # type: ignore[no-untyped-def]
+    """A time up to which f > 0 is certified from t on by row i's first term alone, else t.
+
+    ``edge``: the row's :func:`_held_edge`, taken once by a search that asks often.
+    """
+    if edge < 0.0:
+        return t
+    if edge == math.inf:
+        return math.inf
+    w = tr[i, _TW]
     r = (w * t + tr[i, _TP] + math.pi) % _TWO_PI - math.pi
     if -edge < r < edge:
         return t + (edge - r) / w * (1.0 - 1e-9)
@@ -193,10 +210,11 @@ def _held_until(tr, i, t):  # type: ignore[no-untyped-def]
 def _falling_zero_windowed(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     """_falling_zero over [t0, t1], one window at a time from where N can first vanish, stopping at the first root."""
     w = _window_s(p)
+    edge = _held_edge(tr, i) if sign > 0.0 else -1.0
     a = t0
     while a < t1:
         if sign > 0.0:
-            a = max(a, _held_until(tr, i, a))
+            a = max(a, _held_until(tr, i, a, edge))
             if a >= t1:
                 return math.inf
         b = min(a + w, t1)

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from millctl.physics.kernels.contacts import _earliest_contact
+from millctl.physics.kernels.contacts import _earliest_contact, _scan_steps
 from millctl.physics.kernels.detach import _falling_zero_windowed, _never_detaches, _rearm, _revolution_s, _window_s
 from millctl.physics.kernels.layout import (
     _A0,
@@ -46,6 +46,8 @@ from millctl.physics.kernels.layout import (
     _S_CA,
     _S_FLY,
     _S_ND,
+    _S_PC,
+    _S_PS,
     _S_SA,
     _S_T0,
     _S_TH,
@@ -81,17 +83,23 @@ def _depart(p, st, tr, i, t, unsupported):  # type: ignore[no-untyped-def]
     st[i, _S_X], st[i, _S_Y], st[i, _S_UX], st[i, _S_UY] = x, y, vx, vy
     alpha = p[_A0] + p[_WV] * t
     st[i, _S_SA], st[i, _S_CA] = math.sin(alpha), math.cos(alpha)
-    theta = math.atan2(y, x)
-    g_eff = p[_G] - p[_RD] * p[_WV] ** 2 * math.sin(p[_A0] + p[_WV] * t)
-    true_n = p[_R0] * p[_WR] ** 2 - g_eff * math.sin(theta)
+    g_eff = p[_G] - p[_RD] * p[_WV] ** 2 * st[i, _S_SA]
+    true_n = p[_R0] * p[_WR] ** 2 - g_eff * y / p[_R0]  # sin θ of the held rod at (x, y) = r0 (cos θ, sin θ)
     exact = p[_PAPER] == 0.0 and not unsupported
     st[i, _S_ND] = 0.0 if exact else p[_R0] * true_n
 
 
 @leaf_kernel
+def _pin(p, st, i, t, theta):  # type: ignore[no-untyped-def]
+    """Rod i held on the wall at angle θ at time t (its state's angle at t = 0 too, for the contact scan)."""
+    st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, theta
+    st[i, _S_PC], st[i, _S_PS] = math.cos(theta - p[_WR] * t), math.sin(theta - p[_WR] * t)
+
+
+@leaf_kernel
 def _repin(p, st, i, t):  # type: ignore[no-untyped-def]
     x, y, _, _ = _rel(p, st, i, t)
-    st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, t, math.atan2(y, x)
+    _pin(p, st, i, t, math.atan2(y, x))
 
 
 @leaf_kernel
@@ -186,8 +194,13 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
     det_lb[:] = horizon
     unsupported[:] = 0.0
     window = _window_s(p)
+    # rod i pinned at θ0 + 2πi/n; cos, sin of its angle by turning rod i − 1's by 2π/n (a few ulp, the scan's only)
+    c_th, s_th = math.cos(p[_TH0]), math.sin(p[_TH0])
+    c_gap, s_gap = math.cos(2.0 * math.pi / n), math.sin(2.0 * math.pi / n)
     for i in range(n):
-        st[i, _S_TH] = p[_TH0] + i * 2.0 * math.pi / n
+        st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, 0.0, p[_TH0] + i * 2.0 * math.pi / n
+        st[i, _S_PC], st[i, _S_PS] = c_th, s_th
+        c_th, s_th = c_th * c_gap - s_th * s_gap, s_th * c_gap + c_th * s_gap
         if i > 0 and not all_rods:
             continue
         if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
@@ -200,6 +213,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
     out[_O_FOUND], out[_O_ZERO] = 0.0, 0.0
     t = 0.0
     first_departure = math.inf
+    steps = _scan_steps(p)
     while True:
         # the earliest known detachment, and the earliest end of a detachment search not yet extended
         t_det, rod_det = math.inf, -1
@@ -216,7 +230,7 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
         seg_end = min(t_det, lb, contact_end)
         t_hit, rod, partner = math.inf, -1, -1
         if t_fly < math.inf:
-            t_hit, rod, partner = _earliest_contact(p, st, tr, n, t, seg_end, tol, scratch)
+            t_hit, rod, partner = _earliest_contact(p, st, tr, n, t, seg_end, tol, scratch, steps)
         if t_hit < math.inf:
             if partner == WALL and t_hit == st[rod, _S_T0]:
                 # a zero-length flight is no impact: the rod stays held through this dip of N

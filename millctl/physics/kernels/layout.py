@@ -123,11 +123,12 @@ _RESYNC = 16  # the contact scan's phasors are recomputed from sin and cos every
 _TWO_PI = 2.0 * math.pi
 
 
-# state columns of a rod: flying flag, t0, pinned angle at t0, x0, y0, ux0, uy0 (vial frame), n_d, sin α0, cos α0
-(_S_FLY, _S_T0, _S_TH, _S_X, _S_Y, _S_UX, _S_UY, _S_ND, _S_SA, _S_CA) = range(10)
+# state columns of a rod: flying flag, t0, pinned angle at t0, x0, y0, ux0, uy0 (vial frame), n_d, sin α0, cos α0,
+# and of a held rod cos, sin of its angle carried back to t = 0, θ_pin − ω_r t0 (the contact scan turns it to any t)
+(_S_FLY, _S_T0, _S_TH, _S_X, _S_Y, _S_UX, _S_UY, _S_ND, _S_SA, _S_CA, _S_PC, _S_PS) = range(12)
 
 
-_STATE_COLUMNS = 10
+_STATE_COLUMNS = 12
 
 
 # function codes for the root finder
@@ -158,13 +159,16 @@ def scene_row(scene: Scene) -> FloatArray:
 
 
 # a trig sum c + Σ a_k cos(w_k t + φ_k) as a row: [c, number of terms, a_0..a_5, w_0..w_5, φ_0..φ_5], then
-# N's own form (:func:`.trig._fill_trig_rows`): 1.0 if the row is N/m = c − (g − κ sin α) sin θ, θ = ω_r t + θ0 and
-# α = ω_v t + α0 (eq. 7's form, two sines and cosines an evaluation instead of three), κ, θ0, ω_v, α0
+# its product form, if it has one (:func:`.trig._fill_trig_rows`, :func:`.telemetry._slip_rows`): _T_N_FORM 1.0 if
+# the row is N/m = c − (g − κ sin α) sin θ, θ = ω_r t + θ0 and α = ω_v t + α0 (eq. 7's form, two sines and cosines
+# an evaluation instead of three), 2.0 if it is a no-slip margin c − (g − κ sin α)(u sin θ + v cos θ) (the same
+# G = g_eff = g − κ sin α, its g in _T_G), then κ, θ0, ω_v, α0, g, u, v
 _T_COUNT, _TA, _TW, _TP = 1, 2, 8, 14
-_T_N_FORM, _T_KAPPA, _T_TH0, _T_WV, _T_A0 = 20, 21, 22, 23, 24
+_T_N_FORM, _T_KAPPA, _T_TH0, _T_WV, _T_A0, _T_G, _T_U, _T_V = 20, 21, 22, 23, 24, 25, 26, 27
+_FORM_N, _FORM_MARGIN = 1.0, 2.0
 
 
-_TRIG_COLUMNS = 25
+_TRIG_COLUMNS = 28
 
 
 TELEMETRY = (

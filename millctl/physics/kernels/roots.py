@@ -1,11 +1,18 @@
-"""Brent's bracketed root finder, a line-by-line port of scipy's ``brentq`` (Zeros/brentq.c), on the kernels' functions.
+"""Bracketed root finders on the kernels' functions: Brent's method, and Newton's where the slope comes free.
 
-The same tolerances as the reference engine, so that both stop on the same test. The function is named
-by a code (``_F_*`` in :mod:`.layout`): N, N′, −N, −N′ (detachment) or the separation and its
-derivative (contacts), evaluated by :func:`_f`.
+* :func:`_brentq_from`: a line-by-line port of scipy's ``brentq`` (Zeros/brentq.c), with the reference
+  engine's tolerances, so that both stop on the same test (N's zeros, the wall gap);
+* :func:`_newton_from`: Newton's method kept inside the bracket, on the same stopping test, for a rod pair's
+  separation, whose derivative comes from the same two positions (:func:`_f_and_slope`), started from the
+  cubic through the bracket's end values and slopes (:func:`_hermite_start`).
+
+The function is named by a code (``_F_*`` in :mod:`.layout`): N, N′, −N, −N′ (detachment) or the separation
+and its derivative (contacts), evaluated by :func:`_f`.
 """
 
 from __future__ import annotations
+
+import math
 
 from millctl.physics.kernels.layout import (
     _F_DN,
@@ -20,7 +27,7 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _departure_gap, _pair
-from millctl.physics.kernels.trig import _trig
+from millctl.physics.kernels.trig import _trig, _trig012
 
 
 @leaf_kernel
@@ -95,3 +102,96 @@ def _brentq_from(code, p, st, tr, i, j, xa, xb, fa, fb, xtol, rtol):  # type: ig
 @leaf_kernel
 def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
     return max(tol, _RTOL * max(abs(a), abs(b)), 1e-300)
+
+
+@leaf_kernel
+def _f_and_slope(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
+    """_f and its time derivative at t, for the codes that have one in closed form (all but the wall gap)."""
+    if code == _F_N:
+        f0, f1, _ = _trig012(tr, i, t, 1.0)
+        return f0, f1
+    if code == _F_NEG_N:
+        f0, f1, _ = _trig012(tr, i, t, -1.0)
+        return f0, f1
+    if code == _F_DN:
+        _, f1, f2 = _trig012(tr, i, t, 1.0)
+        return f1, f2
+    if code == _F_NEG_DN:
+        _, f1, f2 = _trig012(tr, i, t, -1.0)
+        return f1, f2
+    s, ds, _ = _pair(p, st, i, j, t)
+    return s, ds
+
+
+@leaf_kernel
+def _hermite_start(xa, xb, fa, dfa, fb, dfb):  # type: ignore[no-untyped-def]
+    """The root in (xa, xb) of the cubic that matches f and f′ at both ends (nan: none found there).
+
+    Newton's method on the cubic from the secant's root, a few steps of arithmetic; the cubic is within
+    O(width⁴ f⁗) of f, so the root finder starts where one Newton step on f reaches rounding.
+    """
+    width = xb - xa
+    ma, mb = dfa * width, dfb * width  # slopes in the step's own variable u ∈ [0, 1]
+    u = fa / (fa - fb)
+    for _ in range(4):
+        u2 = u * u
+        u3 = u2 * u
+        value = (2.0 * u3 - 3.0 * u2 + 1.0) * fa + (u3 - 2.0 * u2 + u) * ma
+        value += (3.0 * u2 - 2.0 * u3) * fb + (u3 - u2) * mb
+        slope = (6.0 * u2 - 6.0 * u) * (fa - fb) + (3.0 * u2 - 4.0 * u + 1.0) * ma + (3.0 * u2 - 2.0 * u) * mb
+        if slope == 0.0:
+            return math.nan
+        u -= value / slope
+        if not (0.0 < u < 1.0):
+            return math.nan
+    return xa + u * width
+
+
+@leaf_kernel
+def _newton_from(code, p, st, tr, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ignore[no-untyped-def]
+    """Newton's method kept inside the bracket [xa, xb], given f and f′ at both ends (f′ nan: unknown).
+
+    The contract and stopping test of :func:`_brentq_from` (a root within ½(xtol + rtol·|x|)), for a function
+    whose slope comes with its value (:func:`_f_and_slope`: a rod pair's separation and its derivative from one
+    pair of positions), where it needs about half of Brent's evaluations. It starts at the root of the cubic
+    through both ends' values and slopes (:func:`_hermite_start`), else the tangent at xb, else the secant; a
+    step that would leave the bracket, or shrink it by less than half of the step before, bisects instead
+    ("rtsafe", Numerical Recipes §9.4).
+    """
+    if fa == 0.0:
+        return xa
+    if fb == 0.0:
+        return xb
+    if (fa < 0.0) == (fb < 0.0):
+        return xa
+    lo, hi = (xa, xb) if fa < 0.0 else (xb, xa)  # f(lo) < 0 < f(hi)
+    inside_lo, inside_hi = min(xa, xb), max(xa, xb)
+    x = _hermite_start(xa, xb, fa, dfa, fb, dfb) if dfa == dfa and dfb == dfb else math.nan
+    if not (inside_lo < x < inside_hi):  # nan included
+        x = xb - fb / dfb if dfb != 0.0 else math.nan
+    if not (inside_lo < x < inside_hi):
+        x = xa - fa * (xb - xa) / (fb - fa)
+        if not (inside_lo < x < inside_hi):
+            x = 0.5 * (xa + xb)
+    step_before = abs(xb - xa)
+    step = step_before
+    f, df = _f_and_slope(code, p, st, tr, i, j, x)
+    for _ in range(_MAXITER):
+        if f == 0.0:
+            return x
+        if f < 0.0:
+            lo = x
+        else:
+            hi = x
+        delta = 0.5 * (xtol + rtol * abs(x))
+        leaves = ((x - hi) * df - f) * ((x - lo) * df - f) > 0.0
+        if leaves or abs(2.0 * f) > abs(step_before * df):
+            step_before, step = step, 0.5 * (hi - lo)
+            x = lo + step
+        else:
+            step_before, step = step, f / df
+            x -= step
+        if abs(step) < delta or abs(hi - lo) < delta:
+            return x
+        f, df = _f_and_slope(code, p, st, tr, i, j, x)
+    return x

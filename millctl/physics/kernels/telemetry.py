@@ -15,10 +15,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from millctl.physics.kernels.detach import _falling_zero_windowed, _held_until, _revolution_s
+from millctl.physics.kernels.detach import _falling_zero_windowed, _held_edge, _held_until, _revolution_s
 from millctl.physics.kernels.events import _event, _scratch
 from millctl.physics.kernels.layout import (
     _A0,
+    _FORM_MARGIN,
     _G,
     _N,
     _O_ENERGY,
@@ -33,7 +34,15 @@ from millctl.physics.kernels.layout import (
     _RD,
     _RTOL,
     _STATE_COLUMNS,
+    _T_A0,
     _T_COUNT,
+    _T_G,
+    _T_KAPPA,
+    _T_N_FORM,
+    _T_TH0,
+    _T_U,
+    _T_V,
+    _T_WV,
     _TH0,
     _TRIG_COLUMNS,
     _TWO_PI,
@@ -60,20 +69,46 @@ def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
     wr, wv, a0, g = p[_WR], p[_WV], p[_A0], p[_G]
     half = 0.5 * p[_RD] * wv * wv
     scale = math.sqrt(1.0 + mu * mu)
+    friction_angle = math.atan(mu)  # μ ≥ 0: atan2(μ, ±1) and atan2(±1, μ) all follow from it
     for r in range(2):
         sign = -1.0 if r == 0 else 1.0
+        lead = friction_angle if sign > 0.0 else math.pi - friction_angle  # atan2(μ, sign)
+        turn = sign * (0.5 * math.pi - friction_angle)  # atan2(sign, μ)
         rows[r, 0], rows[r, _T_COUNT] = mu * p[_R0] * wr * wr, 3.0
         # μg cos(θ + π/2) + sign·g cos θ = g √(1 + μ²) cos(θ + atan2(μ, sign))
-        _set_term(rows, r, 0, g * scale, wr, theta0 + math.atan2(mu, sign))
+        _set_term(rows, r, 0, g * scale, wr, theta0 + lead)
         # ½ r_d ω_v² (μ cos y − sign·sin y), y = (ω_v − ω_r) t + α0 − θ0
-        _set_term(rows, r, 1, half * scale, wv - wr, a0 - theta0 + math.atan2(sign, mu))
+        _set_term(rows, r, 1, half * scale, wv - wr, a0 - theta0 + turn)
         # −½ r_d ω_v² (μ cos y + sign·sin y), y = (ω_v + ω_r) t + α0 + θ0
-        _set_term(rows, r, 2, -half * scale, wv + wr, a0 + theta0 - math.atan2(sign, mu))
+        _set_term(rows, r, 2, -half * scale, wv + wr, a0 + theta0 - turn)
+        # the same sum as μ r0 ω_r² − g_eff (μ sin θ − sign·cos θ), g_eff = g − r_d ω_v² sin α: its product form
+        rows[r, _T_N_FORM], rows[r, _T_KAPPA], rows[r, _T_TH0] = _FORM_MARGIN, 2.0 * half, theta0
+        rows[r, _T_WV], rows[r, _T_A0], rows[r, _T_G] = wv, a0, g
+        rows[r, _T_U], rows[r, _T_V] = mu, -sign
     return rows
 
 
 _SAFE_STEPS = 48
 """Steps of :func:`_margin_first_zero` before it hands the rest of the arc to the windowed search."""
+
+
+_LOOK_AHEAD = 4.0
+"""How far past the global-curvature step (in those steps) :func:`_local_safe_step` looks."""
+
+
+@njit(cache=True, error_model="numpy")
+def _local_safe_step(m, dm, d2m, curvature_max, jerk_max, reach):  # type: ignore[no-untyped-def]
+    """A step in (0, reach] over which m > 0 is certified from m, m′, m″ at its start and |m‴| ≤ ``jerk_max``.
+
+    On [t, t + reach] m″ ≥ m″(t) − jerk_max·reach, and m″ ≥ −``curvature_max`` everywhere, so with
+    d = max(0, min(curvature_max, jerk_max·reach − m″(t))) m(t + h) ≥ m + m′h − ½dh², positive for h below
+    2m / (√(m′² + 2dm) − m′) (all of ``reach`` when d = 0 and m′ ≥ 0).
+    """
+    deficit = max(0.0, min(curvature_max, jerk_max * reach - d2m))
+    root = math.sqrt(dm * dm + 2.0 * deficit * m) - dm
+    if root <= 0.0:
+        return reach
+    return min(reach, 2.0 * m / root)
 
 
 @njit(cache=True, error_model="numpy")
@@ -88,19 +123,21 @@ def _margin_first_zero(p, st, tr, i, t_end):  # type: ignore[no-untyped-def]
     :data:`_SAFE_STEPS` steps. About 6 steps a margin on the studies' 100 × 100 map, against ~12 trig sums
     of the windowed search's cell tests and Brent.
     """
-    curvature_max = _trig_bound(tr, i, 2)
-    t = max(0.0, _held_until(tr, i, 0.0))
+    curvature_max, jerk_max = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
+    edge = _held_edge(tr, i)
+    t = max(0.0, _held_until(tr, i, 0.0, edge))
     for _ in range(_SAFE_STEPS):
         if t >= t_end:
             return math.inf
-        m, dm, _ = _trig012(tr, i, t, 1.0)
+        m, dm, d2m = _trig012(tr, i, t, 1.0)
         if m <= 0.0:
             return t
         h = 2.0 * m / (math.sqrt(dm * dm + 2.0 * curvature_max * m) - dm)
         if dm < 0.0 and h <= 4.0 * _RTOL * t:
             return t + m / -dm
+        h = max(h, _local_safe_step(m, dm, d2m, curvature_max, jerk_max, _LOOK_AHEAD * h))
         t += h
-        t = max(t, _held_until(tr, i, t))
+        t = max(t, _held_until(tr, i, t, edge))
     return _falling_zero_windowed(p, st, tr, i, 1.0, t, t_end) if t < t_end else math.inf
 
 

@@ -15,6 +15,8 @@ from numba import njit
 
 from millctl.physics.kernels.layout import (
     _A0,
+    _FORM_MARGIN,
+    _FORM_N,
     _G,
     _KM,
     _PAPER,
@@ -22,9 +24,12 @@ from millctl.physics.kernels.layout import (
     _RD,
     _T_A0,
     _T_COUNT,
+    _T_G,
     _T_KAPPA,
     _T_N_FORM,
     _T_TH0,
+    _T_U,
+    _T_V,
     _T_WV,
     _TA,
     _TH0,
@@ -63,7 +68,7 @@ def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
         _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
         _set_term(rows, i, 1, half, wv - wr, a0 - th0)
         _set_term(rows, i, 2, -half, wv + wr, a0 + th0)
-        rows[i, _T_N_FORM], rows[i, _T_KAPPA], rows[i, _T_TH0] = 1.0, coupling, th0
+        rows[i, _T_N_FORM], rows[i, _T_KAPPA], rows[i, _T_TH0] = _FORM_N, coupling, th0
         rows[i, _T_WV], rows[i, _T_A0] = wv, a0
 
 
@@ -110,10 +115,41 @@ def _n_form01(tr, i, t, order):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
+def _margin_form012(tr, i, t):  # type: ignore[no-untyped-def]
+    """A no-slip margin row and its first two time derivatives in the product form (``_FORM_MARGIN``).
+
+    m = c − G S with G = g − κ sin α as in N (:func:`_n_form012`) and S = u sin θ + v cos θ, S′ = ω_r (u cos θ −
+    v sin θ), S″ = −ω_r² S: μN/m ∓ F_t/m of :func:`.telemetry._slip_rows` (u = μ, v = ±1), two sine–cosine
+    pairs where its three cosines take three.
+    """
+    w_r, w_v, kappa, u, v = tr[i, _TW], tr[i, _T_WV], tr[i, _T_KAPPA], tr[i, _T_U], tr[i, _T_V]
+    theta = w_r * t + tr[i, _T_TH0]
+    alpha = w_v * t + tr[i, _T_A0]
+    s_th, c_th = math.sin(theta), math.cos(theta)
+    s_al, c_al = math.sin(alpha), math.cos(alpha)
+    g_eff = tr[i, _T_G] - kappa * s_al
+    d_g = -kappa * w_v * c_al
+    d2_g = kappa * w_v * w_v * s_al
+    s_0 = u * s_th + v * c_th
+    s_1 = w_r * (u * c_th - v * s_th)
+    f0 = tr[i, 0] - g_eff * s_0
+    f1 = -d_g * s_0 - g_eff * s_1
+    f2 = -d2_g * s_0 - 2.0 * d_g * s_1 + g_eff * w_r * w_r * s_0
+    return f0, f1, f2
+
+
+@leaf_kernel
 def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
     """Sign × the order-th time derivative of row i at t."""
-    if order <= 1 and tr[i, _T_N_FORM] != 0.0:
+    form = tr[i, _T_N_FORM]
+    if order <= 1 and form == _FORM_N:
         return sign * _n_form01(tr, i, t, order)
+    if order == 0 and form == _FORM_MARGIN:
+        theta = tr[i, _TW] * t + tr[i, _T_TH0]
+        g_eff = tr[i, _T_G] - tr[i, _T_KAPPA] * math.sin(tr[i, _T_WV] * t + tr[i, _T_A0])
+        return sign * (tr[i, 0] - g_eff * (tr[i, _T_U] * math.sin(theta) + tr[i, _T_V] * math.cos(theta)))
+    if order == 1 and form == _FORM_MARGIN:
+        return sign * _margin_form012(tr, i, t)[1]
     total = tr[i, 0] if order == 0 else 0.0
     shift = 0.5 * math.pi * order
     for k in range(int(tr[i, _T_COUNT])):
@@ -125,8 +161,12 @@ def _trig(tr, i, t, order, sign):  # type: ignore[no-untyped-def]
 @leaf_kernel
 def _trig012(tr, i, t, sign):  # type: ignore[no-untyped-def]
     """Sign × (value, first, second derivative) of row i at t: one sine and cosine per term serve all three."""
-    if tr[i, _T_N_FORM] != 0.0:
+    form = tr[i, _T_N_FORM]
+    if form == _FORM_N:
         f0, f1, f2 = _n_form012(tr, i, t)
+        return sign * f0, sign * f1, sign * f2
+    if form == _FORM_MARGIN:
+        f0, f1, f2 = _margin_form012(tr, i, t)
         return sign * f0, sign * f1, sign * f2
     f0, f1, f2 = tr[i, 0], 0.0, 0.0
     for k in range(int(tr[i, _T_COUNT])):
