@@ -56,6 +56,8 @@ from millctl.physics.kernels.layout import (
     _S_X,
     _S_Y,
     _STATE_COLUMNS,
+    _T_KAPPA,
+    _TA,
     _TH0,
     _TRIG_COLUMNS,
     _TWO_PI,
@@ -68,7 +70,18 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _rel
-from millctl.physics.kernels.trig import _fill_trig_rows, _trig
+from millctl.physics.kernels.trig import _fill_trig_rows
+
+_GAP_TURNS = np.array([[math.cos(2.0 * math.pi / n), math.sin(2.0 * math.pi / n)] for n in range(1, 65)])
+"""cos, sin of 2π/n, the angle between neighbouring rods, for n = 1 … 64 (row n − 1)."""
+
+
+@leaf_kernel
+def _gap_turn(n):  # type: ignore[no-untyped-def]
+    """cos, sin of 2π/n: from :data:`_GAP_TURNS` up to 64 rods, else computed."""
+    if 1 <= n <= _GAP_TURNS.shape[0]:
+        return _GAP_TURNS[n - 1, 0], _GAP_TURNS[n - 1, 1]
+    return math.cos(2.0 * math.pi / n), math.sin(2.0 * math.pi / n)
 
 
 @leaf_kernel
@@ -194,16 +207,19 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
     det_lb[:] = horizon
     unsupported[:] = 0.0
     window = _window_s(p)
-    # rod i pinned at θ0 + 2πi/n; cos, sin of its angle by turning rod i − 1's by 2π/n (a few ulp, the scan's only)
+    # rod i pinned at θ0 + 2πi/n; cos, sin of its angle by turning rod i − 1's by 2π/n (a few ulp, the scan's and
+    # N(0)'s only; rod 0's are the sine and cosine of θ0 itself)
     c_th, s_th = math.cos(p[_TH0]), math.sin(p[_TH0])
-    c_gap, s_gap = math.cos(2.0 * math.pi / n), math.sin(2.0 * math.pi / n)
+    c_gap, s_gap = _gap_turn(n)
+    g_eff0 = tr[0, _TA] - tr[0, _T_KAPPA] * math.sin(p[_A0])  # eq. 7's g − κ sin α at t = 0, every rod's
     for i in range(n):
         st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, 0.0, p[_TH0] + i * 2.0 * math.pi / n
         st[i, _S_PC], st[i, _S_PS] = c_th, s_th
+        n_at_start = tr[i, 0] - g_eff0 * s_th  # N(0)/m in eq. 7's form (:func:`.trig._n_form01` at t = 0)
         c_th, s_th = c_th * c_gap - s_th * s_gap, s_th * c_gap + c_th * s_gap
         if i > 0 and not all_rods:
             continue
-        if _trig(tr, i, 0.0, 0, 1.0) <= 0.0:
+        if n_at_start <= 0.0:
             det_t[i] = 0.0
             unsupported[i] = 1.0
         elif not _never_detaches(tr, i):
