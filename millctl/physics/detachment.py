@@ -2,11 +2,12 @@
 
 N(t)/m is a trig sum (:func:`~millctl.physics.kinematics.normal_force_per_mass`),
 so bounds on its derivatives are exact. The search is certified, with no scan
-step: an interval is discarded when a second-order Taylor bound proves N > 0 on
-it; where N'' keeps one sign N' is monotone, so N has at most one critical point
-there, found as a root of N' (Brent's method: :func:`.roots.brentq`, scipy's
-algorithm without importing scipy) — this is how N's minima are tracked when N
-only grazes zero. Otherwise the interval is bisected. A minimum at which N stays
+step: an interval is discarded when a Taylor bound proves N > 0 on it (second
+order with max|N''|, or third order with N'' at its midpoint and max|N'''|); where
+N'' keeps one sign N' is monotone, so N has at most one critical point there, found
+as a root of N' (Brent's method: :func:`.roots.brentq`, scipy's algorithm without
+importing scipy) — this is how N's minima are tracked when N only grazes zero.
+Otherwise the interval is bisected. A minimum at which N stays
 ≥ 0 is reported as no detachment (pinned), honestly.
 
 Cost: a few dozen evaluations of a three-term cosine sum per revolution
@@ -71,10 +72,13 @@ def first_falling_zero(f: TrigSum, t_start_s: float, t_end_s: float) -> float | 
         a, b, depth = stack.pop()
         h = b - a
         mid = 0.5 * (a + b)
-        f0, f1 = f(mid), f(mid, 1)
-        if f0 - abs(f1) * 0.5 * h - m2 * h * h * 0.125 > 0.0:
+        f0, f1, f2 = f(mid), f(mid, 1), f(mid, 2)
+        linear = f0 - abs(f1) * 0.5 * h
+        # Taylor about the midpoint, |u| ≤ h/2: f ≥ f0 − |f′|h/2 − max|f″| h²/8, or with f″ there and max|f‴|:
+        # f ≥ f0 − |f′|h/2 + min(f″, 0) h²/8 − max|f‴| h³/48; either bound above zero clears the cell
+        if linear - m2 * h * h * 0.125 > 0.0 or linear + min(f2, 0.0) * h * h * 0.125 - m3 * h * h * h / 48.0 > 0.0:
             continue
-        if abs(f(mid, 2)) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
+        if abs(f2) > m3 * 0.5 * h or depth >= _MAX_DEPTH:
             root = _monotone_pieces_root(f, a, b)
             if root is not None:
                 return root

@@ -37,7 +37,7 @@ from millctl.physics.kernels.trig import _trig, _trig012, _trig_bound, _trig_row
 
 @leaf_kernel
 def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-def]
-    """On [a, b] f′ is monotone or of one sign: split at f's critical point and look for a falling zero (inf: none)."""
+    """On [a, b] f' is monotone: split at f's critical point and look for a falling zero (inf: none)."""
     f_code, df_code = (_F_N, _F_DN) if sign > 0.0 else (_F_NEG_N, _F_NEG_DN)
     fa, d1a, _ = _trig012(tr, i, a, sign)
     fb, d1b, _ = _trig012(tr, i, b, sign)
@@ -106,10 +106,7 @@ def _falling_zero(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
 
 @leaf_kernel
 def _cell_test(tr, i, sign, a, b, depth, m2, m3):  # type: ignore[no-untyped-def]
-    """[a, b] at this depth: certified positive (Taylor bound), searched whole (f″ or f′ of one sign; deep), or split.
-
-    f″ keeps its sign on the cell when |f″(mid)| > max|f‴|·h/2, f′ when |f′(mid)| > max|f″|·h/2.
-    """
+    """[a, b] at this depth: certified positive (Taylor bound), searched whole (f″ of one sign, or deep), or split."""
     h = b - a
     f0, f1, f2 = _trig012(tr, i, 0.5 * (a + b), sign)
     linear = f0 - abs(f1) * 0.5 * h
@@ -117,8 +114,8 @@ def _cell_test(tr, i, sign, a, b, depth, m2, m3):  # type: ignore[no-untyped-def
     # f ≥ f0 − |f′|h/2 + min(f″, 0) h²/8 − max|f‴| h³/48; either bound above zero certifies the cell
     if linear - m2 * h * h * 0.125 > 0.0 or linear + min(f2, 0.0) * h * h * 0.125 - m3 * h * h * h / 48.0 > 0.0:
         return _CELL_POSITIVE
-    if abs(f2) > m3 * 0.5 * h or abs(f1) > m2 * 0.5 * h or depth >= _SPLIT_DEPTH:
-        return _CELL_MONOTONE  # f″ of one sign on the cell (f′ monotone), or f′ of one sign (f monotone)
+    if abs(f2) > m3 * 0.5 * h or depth >= _SPLIT_DEPTH:
+        return _CELL_MONOTONE
     return _CELL_SPLIT
 
 
