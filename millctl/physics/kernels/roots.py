@@ -27,7 +27,7 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _departure_gap, _pair
-from millctl.physics.kernels.trig import _trig, _trig012
+from millctl.physics.kernels.trig import _trig
 
 
 @leaf_kernel
@@ -106,19 +106,7 @@ def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
 
 @leaf_kernel
 def _f_and_slope(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
-    """_f and its time derivative at t, for the codes that have one in closed form (all but the wall gap)."""
-    if code == _F_N:
-        f0, f1, _ = _trig012(tr, i, t, 1.0)
-        return f0, f1
-    if code == _F_NEG_N:
-        f0, f1, _ = _trig012(tr, i, t, -1.0)
-        return f0, f1
-    if code == _F_DN:
-        _, f1, f2 = _trig012(tr, i, t, 1.0)
-        return f1, f2
-    if code == _F_NEG_DN:
-        _, f1, f2 = _trig012(tr, i, t, -1.0)
-        return f1, f2
+    """A rod pair's separation and its time derivative at t (code ``_F_SIGN_SEP``, j a rod: :func:`.motion._pair`)."""
     s, ds, _ = _pair(p, st, i, j, t)
     return s, ds
 

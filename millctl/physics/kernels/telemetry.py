@@ -19,7 +19,6 @@ from millctl.physics.kernels.detach import _falling_zero_windowed, _held_edge, _
 from millctl.physics.kernels.events import _event, _scratch
 from millctl.physics.kernels.layout import (
     _A0,
-    _FORM_MARGIN,
     _G,
     _N,
     _O_ENERGY,
@@ -34,15 +33,7 @@ from millctl.physics.kernels.layout import (
     _RD,
     _RTOL,
     _STATE_COLUMNS,
-    _T_A0,
     _T_COUNT,
-    _T_G,
-    _T_KAPPA,
-    _T_N_FORM,
-    _T_TH0,
-    _T_U,
-    _T_V,
-    _T_WV,
     _TH0,
     _TRIG_COLUMNS,
     _TWO_PI,
@@ -54,7 +45,7 @@ from millctl.physics.kernels.layout import (
     WALL,
     FloatArray,
 )
-from millctl.physics.kernels.trig import _set_term, _trig, _trig012, _trig_bound
+from millctl.physics.kernels.trig import _set_margin_form, _set_term, _trig, _trig012, _trig_bound
 
 
 @njit(cache=True, error_model="numpy")
@@ -82,9 +73,7 @@ def _slip_rows(p, theta0, mu, rows):  # type: ignore[no-untyped-def]
         # −½ r_d ω_v² (μ cos y + sign·sin y), y = (ω_v + ω_r) t + α0 + θ0
         _set_term(rows, r, 2, -half * scale, wv + wr, a0 + theta0 - turn)
         # the same sum as μ r0 ω_r² − g_eff (μ sin θ − sign·cos θ), g_eff = g − r_d ω_v² sin α: its product form
-        rows[r, _T_N_FORM], rows[r, _T_KAPPA], rows[r, _T_TH0] = _FORM_MARGIN, 2.0 * half, theta0
-        rows[r, _T_WV], rows[r, _T_A0], rows[r, _T_G] = wv, a0, g
-        rows[r, _T_U], rows[r, _T_V] = mu, -sign
+        _set_margin_form(rows, r, 2.0 * half, theta0, wv, a0, g, mu, -sign)
     return rows
 
 

@@ -48,6 +48,14 @@ def _set_term(rows, i, k, amplitude, frequency, phase):  # type: ignore[no-untyp
 
 
 @leaf_kernel
+def _set_margin_form(rows, i, kappa, theta0, w_v, alpha0, g, u, v):  # type: ignore[no-untyped-def]
+    """Mark row i as a no-slip margin c − (g − κ sin α)(u sin θ + v cos θ), θ = ω_r t + θ0 (ω_r its term 0's)."""
+    rows[i, _T_N_FORM], rows[i, _T_KAPPA], rows[i, _T_TH0] = _FORM_MARGIN, kappa, theta0
+    rows[i, _T_WV], rows[i, _T_A0], rows[i, _T_G] = w_v, alpha0, g
+    rows[i, _T_U], rows[i, _T_V] = u, v
+
+
+@leaf_kernel
 def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
     """Fill rows 0..n−1 of ``rows``: N/m of rod i (kinematics.normal_force_per_mass), three terms each.
 
