@@ -1,9 +1,10 @@
 """The first contact of a flying rod with the wall or another rod (the reference is :mod:`millctl.physics.events`).
 
 Eqs 12–17 done exactly: every pair is scanned on a grid (separation, its exact derivative, and the
-second-order margin that lets a grazing minimum be skipped only when it provably stays apart), held
-rods turned and flying rods' cam phases advanced by phasors; a bracketed sign change or minimum is
-resolved by Brent's method.
+second-order margin that lets a grazing minimum be skipped only when it provably stays apart, or when the
+tangents at the step's ends prove it), held rods turned and flying rods' cam phases advanced by phasors;
+a bracketed sign change is resolved by Newton's method kept in its bracket for a rod pair
+(:func:`.roots._newton_from`) and by Brent's for the wall, a bracketed minimum by Brent's on the derivative.
 """
 
 from __future__ import annotations

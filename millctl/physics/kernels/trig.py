@@ -4,6 +4,8 @@ N/m = r0 ω_r² − g_eff sin θ (corrected) or the paper's eq. 7 form 2 r0 ω_r
 with sin α sin θ = ½[cos(α − θ) − cos(α + θ)] and −g sin θ = g cos(θ + π/2): three terms per rod
 (:func:`~millctl.physics.kinematics.normal_force_per_mass`, the reference's form). A rod's N row is marked
 (``_T_N_FORM``) and evaluated in the product form instead (:func:`_n_form012`): two sine–cosine pairs, not three.
+The no-slip margins μN/m ∓ F_t/m of :mod:`.telemetry` are the same product with u sin θ + v cos θ in place of
+sin θ (:func:`_margin_form012`, :func:`_set_margin_form`).
 """
 
 from __future__ import annotations
