@@ -31,8 +31,8 @@ from millctl.physics.kernels.layout import (
     WALL,
     leaf_kernel,
 )
-from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _zero_length_departure
-from millctl.physics.kernels.roots import _brentq_from, _f, _f_and_slope, _newton_from, _xtol
+from millctl.physics.kernels.motion import _departure_gap, _flying_rel, _pair, _zero_length_departure
+from millctl.physics.kernels.roots import _brentq_from, _f, _newton_from, _xtol
 
 
 @leaf_kernel
@@ -65,7 +65,7 @@ def _resolve(p, st, tr, i, j, a, b, tol, s_a, ds_a):  # type: ignore[no-untyped-
         f_b = _f(_F_SIGN_SEP, p, st, tr, i, j, b)
         db = math.nan
     else:
-        f_b, db = _f_and_slope(_F_SIGN_SEP, p, st, tr, i, j, b)
+        f_b, db, _ = _pair(p, st, i, j, b)
     if f_b <= 0.0:
         if j == WALL:
             f_a = _f(_F_SIGN_SEP, p, st, tr, i, j, a)
@@ -73,8 +73,8 @@ def _resolve(p, st, tr, i, j, a, b, tol, s_a, ds_a):  # type: ignore[no-untyped-
         if s_a > 0.0:
             f_a, da = s_a, ds_a
         else:
-            f_a, da = _f_and_slope(_F_SIGN_SEP, p, st, tr, i, j, a)
-        return _newton_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, da, f_b, db, _xtol(a, b, tol), _RTOL)
+            f_a, da, _ = _pair(p, st, i, j, a)
+        return _newton_from(p, st, i, j, a, b, f_a, da, f_b, db, _xtol(a, b, tol), _RTOL)
     da = _f(_F_DSEP, p, st, tr, i, j, a)
     if j == WALL:
         db = _f(_F_DSEP, p, st, tr, i, j, b)

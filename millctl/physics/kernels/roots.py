@@ -3,7 +3,7 @@
 * :func:`_brentq_from`: a line-by-line port of scipy's ``brentq`` (Zeros/brentq.c), with the reference
   engine's tolerances, so that both stop on the same test (N's zeros, the wall gap);
 * :func:`_newton_from`: Newton's method kept inside the bracket, on the same stopping test, for a rod pair's
-  separation, whose derivative comes from the same two positions (:func:`_f_and_slope`), started from the
+  separation, whose derivative comes from the same two positions (:func:`.motion._pair`), started from the
   cubic through the bracket's end values and slopes (:func:`_hermite_start`).
 
 The function is named by a code (``_F_*`` in :mod:`.layout`): N, N′, −N, −N′ (detachment) or the separation
@@ -105,13 +105,6 @@ def _xtol(a, b, tol):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
-def _f_and_slope(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
-    """A rod pair's separation and its time derivative at t (code ``_F_SIGN_SEP``, j a rod: :func:`.motion._pair`)."""
-    s, ds, _ = _pair(p, st, i, j, t)
-    return s, ds
-
-
-@leaf_kernel
 def _hermite_start(xa, xb, fa, dfa, fb, dfb):  # type: ignore[no-untyped-def]
     """The root in (xa, xb) of the cubic that matches f and f′ at both ends (nan: none found there).
 
@@ -136,12 +129,12 @@ def _hermite_start(xa, xb, fa, dfa, fb, dfb):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
-def _newton_from(code, p, st, tr, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ignore[no-untyped-def]
-    """Newton's method kept inside the bracket [xa, xb], given f and f′ at both ends (f′ nan: unknown).
+def _newton_from(p, st, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ignore[no-untyped-def]
+    """Newton's method on rods i and j's separation inside the bracket [xa, xb], given it and its slope at both ends.
 
-    The contract and stopping test of :func:`_brentq_from` (a root within ½(xtol + rtol·|x|)), for a function
-    whose slope comes with its value (:func:`_f_and_slope`: a rod pair's separation and its derivative from one
-    pair of positions), where it needs about half of Brent's evaluations. It starts at the root of the cubic
+    The contract and stopping test of :func:`_brentq_from` (a root within ½(xtol + rtol·|x|)); the separation's
+    slope comes with it from the same two positions (:func:`.motion._pair`), so it needs about half of Brent's
+    evaluations. A slope of nan: unknown. It starts at the root of the cubic
     through both ends' values and slopes (:func:`_hermite_start`), else the tangent at xb, else the secant; a
     step that would leave the bracket, or shrink it by less than half of the step before, bisects instead
     ("rtsafe", Numerical Recipes §9.4).
@@ -163,7 +156,7 @@ def _newton_from(code, p, st, tr, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  
             x = 0.5 * (xa + xb)
     step_before = abs(xb - xa)
     step = step_before
-    f, df = _f_and_slope(code, p, st, tr, i, j, x)
+    f, df, _ = _pair(p, st, i, j, x)
     for _ in range(_MAXITER):
         if f == 0.0:
             return x
@@ -181,5 +174,5 @@ def _newton_from(code, p, st, tr, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  
             x -= step
         if abs(step) < delta or abs(hi - lo) < delta:
             return x
-        f, df = _f_and_slope(code, p, st, tr, i, j, x)
+        f, df, _ = _pair(p, st, i, j, x)
     return x
