@@ -87,8 +87,7 @@ def arrays(num: int, repeats: int = 3, cam_phases: int = FIXED_CAM_PHASES) -> di
     """The level-(a, b) map through evaluate_arrays: points per CPU second of this thread.
 
     ``cam_phases``: K fixed cam phases a point, or 0 to integrate over the phase to 1 % (the
-    studies' default); ``phases_per_point`` is the mean K a point settled at (the integral
-    computed 8 + 16 + … + K samples for it).
+    studies' default); ``phases_per_point`` is the mean number of cam-phase samples a point took.
     """
     (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
     rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, num), np.linspace(lo_v, hi_v, num), indexing="ij")
@@ -106,49 +105,62 @@ def arrays(num: int, repeats: int = 3, cam_phases: int = FIXED_CAM_PHASES) -> di
     }  # fmt: skip
 
 
+CHECK_PHASES = 1024
+"""The reference of :func:`integral_check`: this many fixed cam phases a point."""
+_SAMPLE_BINS = ((16, 16), (17, 32), (33, 64), (65, 128), (129, 1 << 30))
+"""The bins of ``points_at_samples``: a point's samples in [lo, hi]."""
+
+
 def where_time_goes(num: int, cam_phases: int = 0) -> dict[str, Any]:
     """One more run of :func:`arrays`' map with the level-(b) kernel's CPU time counted apart.
 
-    Every :func:`millctl.physics.kernels.telemetry_batch` call is timed (``time.thread_time``); the rest
-    of the CPU time is the Python and numpy around it. ``samples`` counts the cam-phase samples the
-    kernel computed; ``points_at_phases`` how many points settled at each K, and ``sample_share_at``
-    the share of all samples those points took; ``floor_points_per_cpu_s`` the rate if every point
-    settled at the first doubling (16 samples) at this run's kernel cost a sample.
+    Every call of :func:`millctl.physics.kernels.telemetry_at` (the integral's samples) and
+    :func:`~millctl.physics.kernels.telemetry_batch` (fixed phases) is timed (``time.thread_time``); the
+    rest of the CPU time is the Python and numpy around it. ``samples`` counts the cam-phase samples the
+    kernel computed; ``points_at_samples`` how many points took 16, 17–32, … samples, and
+    ``sample_share_at`` the share of all samples those points took; ``floor_points_per_cpu_s`` the rate if
+    every point had stopped at the rule's first 16 samples at this run's kernel cost a sample.
     """
     (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
     rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, num), np.linspace(lo_v, hi_v, num), indexing="ij")
     points = {"rotary_rpm": rotary.ravel(), "vibration_rpm": vibration.ravel()}
     config, settings = bench_config(), PointSettings(cam_phases=cam_phases)
     evaluate_arrays({k: v[:4] for k, v in points.items()}, config, DEFAULT_METRICS, settings)
-    original, spent = kernels.telemetry_batch, {"cpu_s": 0.0, "samples": 0}
+    spent = {"cpu_s": 0.0, "samples": 0}
+    originals = {name: getattr(kernels, name) for name in ("telemetry_at", "telemetry_batch")}
 
-    def timed(*args: Any, **kwargs: Any) -> Any:
-        start = time.thread_time()
-        table = original(*args, **kwargs)
-        spent["cpu_s"] += time.thread_time() - start
-        spent["samples"] += int(table.shape[0] * table.shape[1])
-        return table
+    def timed(original: Any) -> Any:
+        def call(*args: Any, **kwargs: Any) -> Any:
+            start = time.thread_time()
+            table = original(*args, **kwargs)
+            spent["cpu_s"] += time.thread_time() - start
+            spent["samples"] += int(np.prod(table.shape[:-1]))
+            return table
 
-    kernels.telemetry_batch = timed
+        return call
+
+    for name, original in originals.items():
+        setattr(kernels, name, timed(original))
     try:
         cpu, _, out = _cpu_wall(lambda: evaluate_arrays(points, config, DEFAULT_METRICS, settings))
     finally:
-        kernels.telemetry_batch = original
+        for name, original in originals.items():
+            setattr(kernels, name, original)
     used = np.asarray(out["cam_phases_used"])
-    ks, counts = np.unique(used, return_counts=True)
     samples = int(spent["samples"])
     per_sample_s = spent["cpu_s"] / max(samples, 1)
+    at, share = {}, {}
+    for lo, hi in _SAMPLE_BINS:
+        inside = (used >= lo) & (used <= hi)
+        if inside.any():
+            key = str(lo) if lo == hi else (f"{lo}–{hi}" if hi < 1 << 30 else f"≥ {lo}")
+            at[key], share[key] = int(inside.sum()), float(used[inside].sum() / max(samples, 1))
     return {
         "points": num * num, "cam_phases": cam_phases, "cpu_s": cpu, "kernel_cpu_s": spent["cpu_s"],
         "kernel_share": spent["cpu_s"] / cpu, "samples": samples, "kernel_us_per_sample": per_sample_s * 1e6,
-        "points_at_phases": {str(int(k)): int(n) for k, n in zip(ks, counts, strict=True)},
-        "sample_share_at": {str(int(k)): float(k * n / max(samples, 1)) for k, n in zip(ks, counts, strict=True)},
+        "samples_per_point": samples / (num * num), "points_at_samples": at, "sample_share_at": share,
         "floor_points_per_cpu_s": 1.0 / (16 * per_sample_s),
     }  # fmt: skip
-
-
-CHECK_PHASES = 1024
-"""The reference of :func:`integral_check`: this many fixed cam phases a point."""
 
 
 def integral_check(points: int, rtol: float = 0.01, seed: int = 3) -> dict[str, Any]:
@@ -360,7 +372,7 @@ def report(st: dict[str, Any]) -> list[str]:
     a, r, o, p = st["arrays"], st["runner"], st["offline"], st["parallel"]
     side = round(a["points"] ** 0.5)
     integrated = [
-        f"| the same integrated over the cam phase to 1 % ({i['phases_per_point']:.0f} phases a point) "
+        f"| the same integrated over the cam phase to 1 % ({i['phases_per_point']:.0f} samples a point) "
         f"| {i['points']:,} | {i['cpu_s']:.3g} s | {i['wall_s']:.3g} s | {i['points_per_cpu_s']:.3g} |"
         for i in [st[k] for k in ("arrays_integrated",) if k in st]
     ]
@@ -417,16 +429,14 @@ def breakdown_lines(st: dict[str, Any]) -> list[str]:
     if "arrays_breakdown" not in st:
         return []
     b = st["arrays_breakdown"]
-    settled = ", ".join(
-        f"{k}: {n:,} ({b['sample_share_at'][k]:.0%})"
-        for k, n in sorted(b["points_at_phases"].items(), key=lambda x: int(x[0]))
-    )
+    settled = ", ".join(f"{k}: {n:,} ({b['sample_share_at'][k]:.0%})" for k, n in b["points_at_samples"].items())
     lines = [
-        f"Where the integrated map's time goes: the level-(b) kernel (`telemetry_batch`) takes "
+        f"Where the integrated map's time goes: the level-(b) kernel (`telemetry_at`) takes "
         f"{b['kernel_share']:.0%} of the CPU time ({b['kernel_cpu_s']:.3g} of {b['cpu_s']:.3g} s; {b['samples']:,} "
-        f"cam-phase samples at {b['kernel_us_per_sample']:.3g} µs each), the Python and numpy around it the rest. "
-        f"Points by the K they settled at (their share of the samples): {settled}. Were every point settled at the "
-        f"first doubling (16 samples), the map would run at {b['floor_points_per_cpu_s']:.3g} points per CPU second.",
+        f"cam-phase samples, {b['samples_per_point']:.3g} a point, at {b['kernel_us_per_sample']:.3g} µs each), the "
+        f"Python and numpy around it the rest. Points by the samples they took (their share of the samples): "
+        f"{settled}. Had every point stopped at the rule's first 16 samples, the map would run at "
+        f"{b['floor_points_per_cpu_s']:.3g} points per CPU second.",
         "",
     ]
     if "integral_check" in st:

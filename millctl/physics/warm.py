@@ -10,14 +10,19 @@ Each call below is the first call of a public entry point with the argument type
 the batch events (:func:`.batch.first_impacts`, one rod and all), the per-scene methods the CLI and
 the benchmark compare (:func:`.methods.first_impact`, ``exact`` with and without a tolerance, and
 ``legacy-compiled``), the detachment times (:func:`.kernels.detachment_times`), the node's
-revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels), and level (c)'s
+revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels), the design
+studies' level-(b) samples (:func:`.kernels.telemetry_batch` at even phases, :func:`.kernels.telemetry_at`
+at the adaptive integral's), and level (c)'s
 many-event kernel (:func:`.simulate.simulate_compiled`, the studies' multi-rod simulation).
 """
 
 from __future__ import annotations
 
+import math
 import sys
 import time
+
+import numpy as np
 
 from millctl.config import default_config
 from millctl.physics import kernels
@@ -45,6 +50,9 @@ def warm() -> None:
     first_impact(scene, "legacy-compiled", dt=1e-3)
     kernels.detachment_times(kernels.scene_row(scene), 5.0)
     revolution_summary(model, OMEGA_R_RAD_S, OMEGA_V_RAD_S)
+    rows, start, pinned = kernels.scene_row(scene)[None, :], np.array([-0.5 * math.pi]), np.array([False])
+    kernels.telemetry_batch(rows, start, pinned, 4, 2.0, model.powder_friction)
+    kernels.telemetry_at(rows, start, pinned, np.zeros(2, dtype=np.int64), np.array([0.0, 1.0]), 2.0, 0.3)
     simulate_compiled(scene, 0.5, threshold_j=1e-10)
 
 

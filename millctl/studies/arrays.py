@@ -12,9 +12,8 @@ is a function ``PointArrays -> FloatArray`` of shape (P,), registered by name in
   per column of :data:`~millctl.physics.kernels.TELEMETRY` — and :meth:`PointArrays.summary`,
   the per-revolution summary of :func:`millctl.physics.telemetry.revolution_summary` as arrays,
   landings below the impact threshold (:func:`millctl.studies.loads.impact_threshold_j`) not
-  counted; with ``cam_phases`` 0 integrated over the cam phase as
-  :func:`millctl.studies.metrics.cam_phase_summary` does it (K = 8, 16, ... for every point at
-  once, each point kept at the first doubling that changes it by ≤ rtol, the rest refined). The
+  counted; with ``cam_phases`` 0 integrated over the cam phase by the adaptive rule of
+  :mod:`millctl.studies.phase_integral` (all points at once, each refined from its own samples). The
   same formulas, the same numbers to rounding (``tests/unit/studies/test_arrays.py``).
 
 Nothing here builds a configuration, a model or a scene per point, and nothing validates per
@@ -34,19 +33,21 @@ from numpy.typing import NDArray
 
 from millctl.config.models import LimitLaw, MillConfig, ModelVariant
 from millctl.physics import kernels
-from millctl.physics.cam import strokes
 from millctl.physics.limits import LimitParams, omega_r_max, vibration_intensity
-from millctl.physics.model import MillModel, Scene
-from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S
+from millctl.physics.model import MillModel
 from millctl.studies.loads import impact_loads, impact_threshold_j, structural_metrics
-from millctl.studies.metrics import MAX_CAM_PHASES
+from millctl.studies.phase_integral import (
+    FLIGHT_CAP_S,
+    integrated_summary,
+    sampler,
+    scene_rows,
+    start_angles,
+    weighted_summary,
+)
 
 FloatArray = NDArray[np.float64]
 ArrayMetric = Callable[["PointArrays"], FloatArray]
 
-FLIGHT_CAP_S = 2.0
-"""Longest flight a level-(b) sample follows (s), as :mod:`millctl.physics.telemetry`."""
-_SHEAR_SINES = tuple(math.sin(2.0 * math.pi * (k + 0.5) / 16) for k in range(16))
 _RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
@@ -93,41 +94,13 @@ class PointArrays:
         threshold: float = cached
         return threshold
 
-    def subset(self, index: NDArray[np.int64], cam_phases: int) -> PointArrays:
-        """The points ``index`` of this mill, sampled at ``cam_phases`` fixed phases (its mill's caches shared)."""
-        shared = {k: v for k, v in self._cache.items() if k in ("limit_params", "impact_threshold_j")}
-        return PointArrays(
-            self.config, self.model, self.omega_r_rad_s[index], self.omega_v_rad_s[index], cam_phases,
-            self.revolutions, None if self.seeds is None else self.seeds[index], self.cam_phase_rtol, shared,
-        )  # fmt: skip
-
     def rows(self, theta0_rad: FloatArray) -> FloatArray:
         """Kernel parameter rows (:data:`~millctl.physics.kernels.PARAMS`) of the points, rod 0 at θ0, α0 = 0."""
-        rows = np.tile(kernels.scene_row(Scene(self.model, 0.0, 0.0)), (self.size, 1))
-        rows[:, kernels.PARAMS.index("omega_r_rad_s")] = self.omega_r_rad_s
-        rows[:, kernels.PARAMS.index("omega_v_rad_s")] = strokes(self.model.cam) * self.omega_v_rad_s
-        rows[:, kernels.PARAMS.index("theta0_rad")] = theta0_rad
-        return rows
+        return scene_rows(self.model, self.omega_r_rad_s, self.omega_v_rad_s, theta0_rad)
 
     def start_angles(self) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """Where a rod carried from the bottom can first detach, and the points where none can (telemetry.py).
-
-        N/m = A − g_eff sin θ with g_eff ∈ [g − c, g + c]: the sample starts at sin θ = A/(g + c) − 1e-9 rad,
-        at the bottom when g − c < 0; pinned where A ≥ g + c.
-        """
-        m, w_r = self.model, self.omega_r_rad_s
-        w_lift = strokes(m.cam) * self.omega_v_rad_s
-        if m.variant is ModelVariant.CORRECTED:
-            a, c = m.r0_m * w_r * w_r, np.abs(m.eccentricity_m * w_lift * w_lift)
-        else:
-            a = 2.0 * m.r0_m * w_r * w_r
-            c = np.abs((w_lift * w_lift - m.spring_n_per_m / m.rod_mass_kg) * m.eccentricity_m)
-        c = 2.0 * np.abs(0.5 * c)
-        g_max, g_min = m.g_m_s2 + c, m.g_m_s2 - c
-        pinned = ((g_min >= 0.0) & (a >= g_max)) | (w_r < MIN_OMEGA_R_RAD_S)  # standstill: telemetry.py's pinned
-        with np.errstate(invalid="ignore"):
-            start = np.where(g_min < 0.0, -0.5 * math.pi, np.arcsin(np.minimum(a / g_max, 1.0)) - 1e-9)
-        return np.where(pinned, -0.5 * math.pi, start), pinned
+        """Where a rod from the bottom can first detach, and where none can (:func:`.phase_integral.start_angles`)."""
+        return start_angles(self.model, self.omega_r_rad_s, self.omega_v_rad_s)
 
     def telemetry(self) -> dict[str, FloatArray]:
         """The K samples of every point, one (P, K) array per :data:`~millctl.physics.kernels.TELEMETRY` column."""
@@ -157,7 +130,10 @@ class PointArrays:
                     "cam_phase_error": np.full(self.size, math.nan),
                 }
             else:
-                cached = _integrated(self)
+                cached = integrated_summary(
+                    self.model, self.omega_r_rad_s, self.omega_v_rad_s, self.impact_threshold_j, self.cam_phase_rtol,
+                    sampler(self.model, self.omega_r_rad_s, self.omega_v_rad_s),
+                )  # fmt: skip
             self._cache["summary"] = cached
         summary: dict[str, FloatArray] = cached
         return summary
@@ -171,143 +147,14 @@ class PointArrays:
         return loads
 
 
-def _integrated(points: PointArrays) -> dict[str, FloatArray]:
-    """The summary integrated over the cam phase, every point as :func:`~millctl.studies.metrics.cam_phase_summary`.
-
-    K = 8, then 16, 32, ... for the points not yet settled: a point settles at the first doubling
-    that changes its milling power (relative) and its detaching share by ≤ rtol, or at
-    :data:`MAX_CAM_PHASES`; its summary is the finer one, its error that last change.
-    """
-    size = points.size
-    out: dict[str, FloatArray] = {}
-    active = np.arange(size, dtype=np.int64)
-    k = 8
-    first = points.subset(active, k)
-    coarse, samples = _summary(first), first.telemetry()
-    while active.size:
-        fine = points.subset(active, 2 * k)
-        fine._cache["telemetry"] = samples = _doubled(fine, samples)
-        finer = _summary(fine)
-        k *= 2
-        new, old = finer["impact_power_w"], coarse["impact_power_w"]
-        scale = np.maximum(np.abs(new), np.abs(old))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            error = np.where(scale > 0.0, np.abs(new - old) / np.where(scale > 0.0, scale, 1.0), 0.0)
-        share = np.abs(finer["detach_fraction"] - coarse["detach_fraction"])
-        done = ((error <= points.cam_phase_rtol) & (share <= points.cam_phase_rtol)) | (k >= MAX_CAM_PHASES)
-        settled = active[done]
-        for name, values in finer.items():
-            out.setdefault(name, np.full(size, math.nan))[settled] = values[done]
-        out.setdefault("cam_phases_used", np.zeros(size))[settled] = float(k)
-        out.setdefault("cam_phase_error", np.full(size, math.nan))[settled] = error[done]
-        active = active[~done]
-        coarse = {name: values[~done] for name, values in finer.items()}
-        samples = {name: values[~done] for name, values in samples.items()}
-    return out
-
-
-def _doubled(fine: PointArrays, coarse: dict[str, FloatArray]) -> dict[str, FloatArray]:
-    """The 2K samples of ``fine`` from its points' K samples and one kernel call for the K odd phases.
-
-    Phase j of 2K is 2πj/(2K): the even ones are the K phases' (bit for bit), the odd ones new.
-    """
-    start, pinned = fine.start_angles()
-    half = fine.cam_phases // 2
-    odd = kernels.telemetry_batch(
-        fine.rows(start), start, pinned, half, FLIGHT_CAP_S, fine.model.powder_friction, odd_of_double=True
-    )
-    both: dict[str, FloatArray] = {}
-    for column, name in enumerate(kernels.TELEMETRY):
-        table = np.empty((fine.size, fine.cam_phases))
-        table[:, 0::2], table[:, 1::2] = coarse[name], odd[:, :, column]
-        both[name] = table
-    return both
-
-
-def _mean_shear_pa(model: MillModel, w_r: FloatArray) -> FloatArray:
-    """Eq. 25 averaged over the pinned arc (telemetry._mean_shear_pa), τ = μ p_av, p_av = N/(2 L b)."""
-    from millctl.physics.impact import contact_radius_m, effective_modulus_pa
-
-    e_star, r = effective_modulus_pa(model), contact_radius_m(model)
-    factor = math.pi / 4.0 if model.variant is ModelVariant.PAPER else 4.0 / math.pi
-    length = model.rod_length_m
-
-    def shear(load: FloatArray) -> FloatArray:
-        n = np.maximum(load, 0.0)
-        b = np.sqrt(factor * n * r / (length * e_star))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            pressure = np.where(b > 0.0, load / (2.0 * length * b), 0.0)
-        result: FloatArray = model.powder_friction * pressure
-        return result
-
-    m = model.rod_mass_kg
-    if model.variant is ModelVariant.PAPER:
-        return shear(m * w_r * w_r * model.r0_m)
-    centripetal = model.r0_m * w_r * w_r
-    total = np.zeros_like(w_r)
-    for s in _SHEAR_SINES:
-        total = total + shear(np.maximum(centripetal - model.g_m_s2 * s, 0.0) * m)
-    result: FloatArray = total / len(_SHEAR_SINES)
-    return result
-
-
 def _summary(points: PointArrays) -> dict[str, FloatArray]:
-    """revolution_summary over arrays: the samples' circular mean θ_d, p, rate, energy, slip flag."""
-    model, w_r = points.model, points.omega_r_rad_s
+    """revolution_summary over arrays: K samples a point, unit weights (:func:`.phase_integral.weighted_summary`)."""
     t = points.telemetry()
-    moving = w_r >= MIN_OMEGA_R_RAD_S
-    landed = (t["found"] == 1.0) & moving[:, None]
-    found = landed & (t["energy_j"] >= points.impact_threshold_j)  # below it: a micro-hop, not an impact
-    count = found.sum(axis=1)
-    theta_d, theta_c, flight = t["theta_d_rad"], t["theta_contact_rad"], t["flight_time_s"]
-    on_wall = t["on_wall"] == 1.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        travel = np.mod(theta_d - theta_c, 2.0 * math.pi)
-        cycle_s = flight + travel / w_r[:, None]
-        wall_rev = np.where(cycle_s > 0.0, 2.0 * math.pi / (w_r[:, None] * cycle_s), 1.0)
-    per_rev = np.where(on_wall, wall_rev, 1.0)
-    zero = np.zeros(points.size)
-    sums = {"sin": zero.copy(), "cos": zero.copy(), "per_rev": zero.copy(), "energy": zero.copy()}
-    sums |= {"flight": zero.copy(), "wall": zero.copy()}
-    for k in range(points.cam_phases):  # in the samples' order, as the scalar summary sums them
-        f = found[:, k]
-        sums["sin"] = np.where(f, sums["sin"] + np.sin(theta_d[:, k]), sums["sin"])
-        sums["cos"] = np.where(f, sums["cos"] + np.cos(theta_d[:, k]), sums["cos"])
-        sums["per_rev"] = np.where(f, sums["per_rev"] + per_rev[:, k], sums["per_rev"])
-        sums["energy"] = np.where(f, sums["energy"] + t["energy_j"][:, k], sums["energy"])
-        sums["flight"] = np.where(f, sums["flight"] + flight[:, k], sums["flight"])
-        sums["wall"] = np.where(f & on_wall[:, k], sums["wall"] + 1.0, sums["wall"])
-    detached = (count > 0) & (w_r >= MIN_OMEGA_R_RAD_S)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        fraction = np.where(detached, count / points.cam_phases, 0.0)
-        p = np.where(detached, fraction * sums["per_rev"] / count, 0.0)
-        per_rod = p * w_r / (2.0 * math.pi)
-        rate = per_rod if model.variant is ModelVariant.PAPER else model.n_rods * per_rod
-        energy = np.where(detached, sums["energy"] / count, 0.0)
-        theta = np.where(detached, np.arctan2(sums["sin"], sums["cos"]), math.nan)
-        flight_mean = np.where(detached, sums["flight"] / count, math.nan)
-        wall_share = np.where(detached, sums["wall"] / count, math.nan)
-    slipping = np.isfinite(t["slip_theta_rad"]) & moving[:, None]
-    slip_sin = np.where(slipping, np.sin(t["slip_theta_rad"]), 0.0).sum(axis=1)
-    slip_cos = np.where(slipping, np.cos(t["slip_theta_rad"]), 0.0).sum(axis=1)
-    violated = slipping.any(axis=1)
-    standing = w_r < MIN_OMEGA_R_RAD_S
-    return {
-        "detached": detached.astype(float),
-        "theta_d_rad": theta,
-        "impact_rate_hz": np.where(detached, rate, 0.0),
-        "mean_impact_energy_j": energy,
-        "impact_power_w": np.where(detached, rate * energy, 0.0),
-        "mean_shear_pa": np.where(standing, 0.0, _mean_shear_pa(model, w_r)),
-        "detach_fraction": fraction,
-        "collisions_per_rod_rev": p,
-        "mean_flight_time_s": flight_mean,
-        "wall_impact_fraction": wall_share,
-        "no_slip_violated": violated.astype(float),
-        "slip_onset_theta_rad": np.where(violated, np.arctan2(slip_sin, slip_cos), math.nan),
-        "slip_fraction": slipping.sum(axis=1) / points.cam_phases,
-        "sub_threshold_fraction": (landed & ~found).sum(axis=1) / points.cam_phases,
-    }
+    k = points.cam_phases
+    table = np.stack([t[name].ravel() for name in kernels.TELEMETRY], axis=1)
+    point = np.repeat(np.arange(points.size, dtype=np.int64), k)
+    model, w_r, threshold = points.model, points.omega_r_rad_s, points.impact_threshold_j
+    return weighted_summary(model, w_r, threshold, point, np.ones(point.size), table)
 
 
 ARRAY_METRICS: dict[str, ArrayMetric] = {}

@@ -36,6 +36,7 @@ from millctl.studies.loads import (
     slip_ride_metrics,
     structural_metrics,
 )
+from millctl.studies.phase_integral import MAX_CAM_PHASES, integrated_summary, sampler
 from millctl.studies.schema import PARAMETER_NAMES, Parameter
 from millctl.units import rad_s_to_rpm
 
@@ -116,7 +117,7 @@ _LIST = [
     Metric("cam_phases_used", "b", "cam phases used", "count",
            "cam phases the level-(b) integral took"),
     Metric("cam_phase_error", "b", "cam-phase integral error", "–",
-           "its error estimate: change of milling power at the last doubling (relative)"),
+           "its error estimate: the larger of milling power's relative and the shares' absolute error"),
     Metric("slip_impact_fraction", "s", "share of cam phases impacting, with slip", "–",
            "with slip (spin locked): share of cam phases with a counted wall impact"),
     Metric("slip_impact_energy_mean_j", "s", "mean impact energy, with slip", "J",
@@ -169,10 +170,6 @@ def quantity_label(name: str) -> str:
     return f"{label} ({unit})" if unit else label
 
 
-MAX_CAM_PHASES = 256
-"""The level-(b) integral stops doubling the cam phases here, whatever its error."""
-
-
 @dataclass(frozen=True)
 class PointSettings:
     """How hard to look at one point."""
@@ -203,25 +200,33 @@ def cam_phase_summary(
 ) -> tuple[RevolutionSummary, int, float]:
     """The level-(b) summary integrated over the cam phase: (summary, phases used, error estimate).
 
-    With ``settings.cam_phases`` > 0, that many phases and error nan. Otherwise K = 8, 16, ...
-    (evenly spaced phases: the rule that integrates a smooth periodic function best) until doubling
-    K changes the milling power by at most ``cam_phase_rtol`` of it and the detaching share by at
-    most ``cam_phase_rtol`` (or K = :data:`MAX_CAM_PHASES`); the error is that last change.
+    With ``settings.cam_phases`` > 0, that many even phases and error nan. Otherwise the adaptive
+    integral of :mod:`millctl.studies.phase_integral` to ``cam_phase_rtol`` (the array path's, for
+    one point: the same samples, the same numbers).
     """
     if settings.cam_phases > 0:
         s = revolution_summary(model, w_r, w_v, cam_phases=settings.cam_phases, min_impact_energy_j=threshold_j)
         return s, settings.cam_phases, math.nan
-    k = 8
-    s = revolution_summary(model, w_r, w_v, cam_phases=k, min_impact_energy_j=threshold_j)
-    while True:
-        finer = revolution_summary(model, w_r, w_v, cam_phases=2 * k, min_impact_energy_j=threshold_j)
-        k *= 2
-        scale = max(abs(finer.impact_power_w), abs(s.impact_power_w))
-        error = abs(finer.impact_power_w - s.impact_power_w) / scale if scale > 0.0 else 0.0
-        share = abs(finer.detach_fraction - s.detach_fraction)
-        s = finer
-        if (error <= settings.cam_phase_rtol and share <= settings.cam_phase_rtol) or k >= MAX_CAM_PHASES:
-            return s, k, error
+    r, v = np.array([abs(w_r)]), np.array([abs(w_v)])
+    out = integrated_summary(model, r, v, threshold_j, settings.cam_phase_rtol, sampler(model, r, v))
+    fields = {name: float(values[0]) for name, values in out.items()}
+    summary = RevolutionSummary(
+        detached=fields["detached"] == 1.0,
+        theta_d_rad=fields["theta_d_rad"],
+        impact_rate_hz=fields["impact_rate_hz"],
+        mean_impact_energy_j=fields["mean_impact_energy_j"],
+        impact_power_w=fields["impact_power_w"],
+        mean_shear_pa=fields["mean_shear_pa"],
+        detach_fraction=fields["detach_fraction"],
+        collisions_per_rod_rev=fields["collisions_per_rod_rev"],
+        mean_flight_time_s=fields["mean_flight_time_s"],
+        wall_impact_fraction=fields["wall_impact_fraction"],
+        no_slip_violated=fields["no_slip_violated"] == 1.0,
+        slip_onset_theta_rad=fields["slip_onset_theta_rad"],
+        slip_fraction=fields["slip_fraction"],
+        sub_threshold_fraction=fields["sub_threshold_fraction"],
+    )
+    return summary, int(fields["cam_phases_used"]), fields["cam_phase_error"]
 
 
 def _level_b(

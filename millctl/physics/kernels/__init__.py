@@ -128,7 +128,7 @@ from millctl.physics.kernels.layout import _WV as _WV
 from millctl.physics.kernels.layout import OUT, PARAMS, TELEMETRY, WALL, FloatArray, scene_row, scene_rows
 from millctl.physics.kernels.motion import _rel as _rel
 from millctl.physics.kernels.scene_call import EventCall, SceneCall
-from millctl.physics.kernels.telemetry import telemetry_batch, telemetry_samples
+from millctl.physics.kernels.telemetry import telemetry_at, telemetry_batch, telemetry_samples
 from millctl.physics.kernels.trig import _trig as _trig
 from millctl.physics.kernels.trig import _trig_rows as _trig_rows
 
@@ -144,6 +144,7 @@ __all__ = [
     "first_impacts",
     "scene_row",
     "scene_rows",
+    "telemetry_at",
     "telemetry_batch",
     "telemetry_samples",
 ]

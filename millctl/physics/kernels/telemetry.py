@@ -3,13 +3,15 @@
 Sample k of a scene: rod 0 from its start angle with lift phase 2πk/K, its one-rod event
 (:mod:`.events`), and the first time the carried ride from the bottom needs a wall traction
 |F_t| > μN (:func:`_slip_onset`, two trig sums μN/m ∓ F_t/m, each searched by certified safe steps,
-:func:`_margin_first_zero`). One scene (:func:`telemetry_samples`) or a batch of scenes (:func:`telemetry_batch`),
-no allocation per scene.
+:func:`_margin_first_zero`). One scene (:func:`telemetry_samples`), a batch of scenes at K even phases
+(:func:`telemetry_batch`) or samples at chosen phases (:func:`telemetry_at`, the adaptive cam-phase
+integral's), no allocation per sample.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -149,41 +151,45 @@ def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, error_model="numpy")
-def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work, stride):  # type: ignore[no-untyped-def]
-    """The K telemetry samples of one scene into ``out`` (K rows of :data:`TELEMETRY`), no allocation.
+def _telemetry_sample(p_base, theta_start, lift_phase, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
+    """One telemetry sample of a scene into ``out`` (one row of :data:`TELEMETRY`), no allocation.
 
+    Rod 0 from ``theta_start`` with the cam's lift phase ``lift_phase`` (rad) at that moment.
     ``work``: (event row, _scratch, scene row, bottom scene row, slip rows, slip state) from :func:`_telemetry_work`.
-    ``stride`` 2: the K odd phases 2π(2k + 1)/(2K) of 2K instead (the even ones are the K phases'), so a
-    doubling of K computes only the new samples, each bit for bit the sample of the 2K call.
     """
     ev, scratch, p, pb, slip_tr, slip_st = work
-    out[:, :] = math.nan
-    rev = _revolution_s(p_base)
+    out[:] = math.nan
+    p[:] = p_base
+    p[_TH0], p[_A0] = theta_start, lift_phase
+    arc_end = _revolution_s(p_base)
     lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
+    if pinned:
+        out[0], out[1] = 0.0, 0.0
+    else:
+        _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
+        detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
+        out[0], out[1] = ev[_O_FOUND], 1.0 if detached else 0.0
+        if ev[_O_FOUND] == 1.0:
+            arc_end = ev[_O_TDEP]
+            out[2], out[3], out[4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
+            out[5], out[6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
+            out[7] = ev[_O_THC]
+        elif detached:
+            arc_end = ev[_O_TD0]
+    # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
+    pb[:] = p
+    pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
+    onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
+    if onset < math.inf:
+        out[8] = onset
+        out[9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+
+
+@njit(cache=True, error_model="numpy")
+def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
+    """The K telemetry samples of one scene, lift phases 2πk/K, into ``out`` (K rows of :data:`TELEMETRY`)."""
     for k in range(phases):
-        p[:] = p_base
-        p[_TH0], p[_A0] = theta_start, _TWO_PI * (stride * k + stride - 1) / (stride * phases)
-        arc_end = rev
-        if pinned:
-            out[k, 0], out[k, 1] = 0.0, 0.0
-        else:
-            _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
-            detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
-            out[k, 0], out[k, 1] = ev[_O_FOUND], 1.0 if detached else 0.0
-            if ev[_O_FOUND] == 1.0:
-                arc_end = ev[_O_TDEP]
-                out[k, 2], out[k, 3], out[k, 4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
-                out[k, 5], out[k, 6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
-                out[k, 7] = ev[_O_THC]
-            elif detached:
-                arc_end = ev[_O_TD0]
-        # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
-        pb[:] = p
-        pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
-        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
-        if onset < math.inf:
-            out[k, 8] = onset
-            out[k, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+        _telemetry_sample(p_base, theta_start, _TWO_PI * k / phases, flight_cap, mu, pinned, out[k], work)
 
 
 @njit(cache=True, error_model="numpy")
@@ -202,7 +208,7 @@ def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
 @njit(cache=True, error_model="numpy")
 def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
     out = np.empty((phases, len(TELEMETRY)))
-    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])), 1)
+    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])))
     return out
 
 
@@ -227,12 +233,21 @@ def telemetry_samples(
 
 
 @njit(cache=True, error_model="numpy")
-def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu, stride):  # type: ignore[no-untyped-def]
+def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu):  # type: ignore[no-untyped-def]
     out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
     work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
     for s in range(rows.shape[0]):
-        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work, stride)
+        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work)
     return out
+
+
+def _scene_table(rows: FloatArray, theta_start_rad: FloatArray, pinned: NDArray[np.bool_]) -> tuple[Any, ...]:
+    table = np.ascontiguousarray(rows, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] != len(PARAMS):
+        raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}), got {table.shape}")
+    start = np.ascontiguousarray(theta_start_rad, dtype=np.float64).reshape(table.shape[0])
+    flags = np.ascontiguousarray(pinned, dtype=np.bool_).reshape(table.shape[0])
+    return table, start, flags
 
 
 def telemetry_batch(
@@ -242,25 +257,50 @@ def telemetry_batch(
     cam_phases: int,
     flight_cap_s: float,
     friction: float,
-    odd_of_double: bool = False,
 ) -> FloatArray:
     """:func:`telemetry_samples` of many scenes in one compiled call: shape (scenes, K, len(TELEMETRY)).
 
     ``rows`` (scenes, len(PARAMS)); ``theta_start_rad`` and ``pinned`` one per scene. The
-    design studies' level (b) (:mod:`millctl.studies.arrays`): no Python per scene.
-    ``odd_of_double``: the K odd phases of 2K (2π(2k + 1)/(2K)); with the K phases' samples
-    interleaved, exactly the 2K call's (the studies' cam-phase integral doubles K this way).
+    design studies' level (b) at K fixed phases (:mod:`millctl.studies.arrays`): no Python per scene.
     """
-    table = np.ascontiguousarray(rows, dtype=np.float64)
-    if table.ndim != 2 or table.shape[1] != len(PARAMS):
-        raise ValueError(f"rows must have shape (scenes, {len(PARAMS)}), got {table.shape}")
-    start = np.ascontiguousarray(theta_start_rad, dtype=np.float64).reshape(table.shape[0])
-    flags = np.ascontiguousarray(pinned, dtype=np.bool_).reshape(table.shape[0])
-    stride = 2 if odd_of_double else 1
-    result: FloatArray = _telemetry_batch(
-        table, start, flags, int(cam_phases), float(flight_cap_s), float(friction), stride
-    )
+    table, start, flags = _scene_table(rows, theta_start_rad, pinned)
+    result: FloatArray = _telemetry_batch(table, start, flags, int(cam_phases), float(flight_cap_s), float(friction))
     return result
 
 
-__all__ = ["telemetry_batch", "telemetry_samples"]
+@njit(cache=True, error_model="numpy")
+def _telemetry_at(rows, theta_start, pinned, scene, lift_phase, flight_cap, mu):  # type: ignore[no-untyped-def]
+    out = np.empty((scene.shape[0], len(TELEMETRY)))
+    work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
+    for s in range(scene.shape[0]):
+        i = scene[s]
+        _telemetry_sample(rows[i], theta_start[i], lift_phase[s], flight_cap, mu, pinned[i], out[s], work)
+    return out
+
+
+def telemetry_at(
+    rows: FloatArray,
+    theta_start_rad: FloatArray,
+    pinned: NDArray[np.bool_],
+    scene_index: NDArray[np.int64],
+    lift_phase_rad: FloatArray,
+    flight_cap_s: float,
+    friction: float,
+) -> FloatArray:
+    """Samples at chosen lift phases, shape (S, len(TELEMETRY)): sample s, ``scene_index[s]`` at ``lift_phase_rad[s]``.
+
+    The scenes as :func:`telemetry_batch`'s; a sample at phase 2πk/K is bit for bit that call's sample k
+    (the adaptive cam-phase integral of :mod:`millctl.studies.phase_integral` places its phases this way).
+    """
+    table, start, flags = _scene_table(rows, theta_start_rad, pinned)
+    index = np.ascontiguousarray(scene_index, dtype=np.int64).ravel()
+    phase = np.ascontiguousarray(lift_phase_rad, dtype=np.float64).ravel()
+    if index.shape != phase.shape:
+        raise ValueError(f"scene_index {index.shape} and lift_phase_rad {phase.shape} must have one shape")
+    if index.size and (int(index.min()) < 0 or int(index.max()) >= table.shape[0]):
+        raise ValueError(f"scene_index must lie in [0, {table.shape[0]}), got {int(index.min())}..{int(index.max())}")
+    result: FloatArray = _telemetry_at(table, start, flags, index, phase, float(flight_cap_s), float(friction))
+    return result
+
+
+__all__ = ["telemetry_at", "telemetry_batch", "telemetry_samples"]

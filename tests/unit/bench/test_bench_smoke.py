@@ -202,9 +202,9 @@ def _study_results() -> dict[str, object]:
                               "wall_s": 5.5, "points_per_cpu_s": 2e3},
         "runner": {"points": 10_000, "cpu_s": 0.5, "wall_s": 1.0, "points_per_cpu_s": 2e4},
         "arrays_breakdown": {"points": 10_000, "cam_phases": 0, "cpu_s": 5.0, "kernel_cpu_s": 4.8, "kernel_share": 0.96,
-                             "samples": 400_000, "kernel_us_per_sample": 12.0,
-                             "points_at_phases": {"16": 9_000, "256": 1_000},
-                             "sample_share_at": {"16": 0.36, "256": 0.64}, "floor_points_per_cpu_s": 5.2e3},
+                             "samples": 400_000, "kernel_us_per_sample": 12.0, "samples_per_point": 40.0,
+                             "points_at_samples": {"16": 9_000, "≥ 129": 1_000},
+                             "sample_share_at": {"16": 0.36, "≥ 129": 0.64}, "floor_points_per_cpu_s": 5.2e3},
         "integral_check": {"points": 600, "rtol": 0.01, "reference_phases": 1024, "within_power": 0.9,
                            "within_share": 0.95, "within_both": 0.88, "power_error_p95": 0.02, "power_error_max": 0.07,
                            "share_error_max": 0.036},
@@ -222,13 +222,14 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
 
     text = "\n".join(study.report(_study_results()))
     assert "| 100 × 100 map, `evaluate_arrays`, 4 cam phases | 10,000 | 0.05 s | 0.1 s | 2e+05 |" in text
-    integrated = "| the same integrated over the cam phase to 1 % (66 phases a point) | 10,000 | 5 s | 5.5 s | 2e+03 |"
+    integrated = "| the same integrated over the cam phase to 1 % (66 samples a point) | 10,000 | 5 s | 5.5 s | 2e+03 |"
     assert integrated in text
     assert "| 2 local processes | 256 (240) | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 65% |" in text
     assert "| 2-worker local Dask cluster | 484 (480) | 7 s | 5 s | 1.40× | 70% | 3 s | 44% |" in text
     assert "c measured first on a 64-point study" in text
-    assert "the level-(b) kernel (`telemetry_batch`) takes 96% of the CPU time (4.8 of 5 s; 400,000" in text
-    assert "16: 9,000 (36%), 256: 1,000 (64%)" in text and "at 5.2e+03 points per CPU second" in text
+    assert "the level-(b) kernel (`telemetry_at`) takes 96% of the CPU time (4.8 of 5 s; 400,000" in text
+    assert "samples, 40 a point, at 12 µs each" in text
+    assert "16: 9,000 (36%), ≥ 129: 1,000 (64%)" in text and "at 5.2e+03 points per CPU second" in text
     checked = "against 1,024 fixed cam phases on 600 random points of the map: the milling power within 1% on 90.0%"
     assert checked in text
     assert "both on 88.0%; the power's error 0.02 at the 95th percentile, 0.07 at worst; the share's 0.036" in text

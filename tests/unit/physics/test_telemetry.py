@@ -138,7 +138,7 @@ def test_compiled_summary_is_the_reference_summary(set_a: MillModel, variant: st
                     assert a == pytest.approx(b, rel=1e-9, abs=1e-30), (w_r, w_v, name)
 
 
-def test_the_odd_phases_of_a_doubling_interleave_to_the_doubled_call_bit_for_bit(config: MillConfig) -> None:
+def test_samples_at_chosen_phases_are_the_fixed_phase_samples_bit_for_bit(config: MillConfig) -> None:
     import numpy as np
 
     from millctl.physics import kernels
@@ -148,10 +148,11 @@ def test_the_odd_phases_of_a_doubling_interleave_to_the_doubled_call_bit_for_bit
     points = PointArrays(config, model, rpm_to_rad_s(np.array([60.0, 200.0, 5.0])), rpm_to_rad_s(np.full(3, 800.0)))
     start, pinned = points.start_angles()
     rows, mu = points.rows(start), model.powder_friction
-    eight = kernels.telemetry_batch(rows, start, pinned, 8, FLIGHT_CAP_S, mu)
-    odd = kernels.telemetry_batch(rows, start, pinned, 8, FLIGHT_CAP_S, mu, odd_of_double=True)
     sixteen = kernels.telemetry_batch(rows, start, pinned, 16, FLIGHT_CAP_S, mu)
-    both = np.empty_like(sixteen)
-    both[:, 0::2], both[:, 1::2] = eight, odd
-    assert np.array_equal(both, sixteen, equal_nan=True)
-    assert not np.array_equal(odd, eight, equal_nan=True)  # the odd phases are new samples
+    scene = np.array([2, 0, 1, 1, 0])  # any order, any scene twice
+    k = np.array([3, 15, 0, 7, 8])
+    at = kernels.telemetry_at(rows, start, pinned, scene, 2.0 * math.pi * k / 16, FLIGHT_CAP_S, mu)
+    assert np.array_equal(at, sixteen[scene, k], equal_nan=True)
+    assert not np.array_equal(at[1], at[4], equal_nan=True)  # two phases of one scene: two samples
+    with pytest.raises(ValueError, match=r"scene_index must lie in \[0, 3\), got 0\.\.3"):
+        kernels.telemetry_at(rows, start, pinned, np.array([0, 3]), np.zeros(2), FLIGHT_CAP_S, mu)
