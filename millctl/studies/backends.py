@@ -215,9 +215,10 @@ POINT_S = {"a": 5e-5, "b_sample": 6e-6, "s_phase": 5e-2, "c_point": 3e-4, "c_rev
 per cam-phase sample; level (s) per slip-ridden phase; level (c) a point plus one per simulated
 revolution. From one serial run of bench/study.py's studies (level (c) 1.4 ms a point at one revolution,
 4.5 ms at four; level (s) 0.45 s a point at 8 phases; level (b) integrated 2.2e-4 s a point at 37 samples)."""
-INTEGRATED_SAMPLES = 40
+INTEGRATED_SAMPLES = 28
 """Level (b) integrated over the cam phase: the samples a point takes on the benchmark's 100 × 100 map
-(bench/study.py, "Where the integrated map's time goes": 37.2 a point), rounded up."""
+(bench/study.py, "Where the integrated map's time goes": 25.3 a point with the adaptive rule of
+:mod:`millctl.studies.phase_integral`, against 37.2 with the doubling it replaced), rounded up."""
 WORKER_STARTUP_S = 3.0
 """Nominal start-up of a local pool, its workers' imports and compiled code loaded (s; bench/study.py measures it)."""
 
