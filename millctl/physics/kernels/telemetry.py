@@ -151,50 +151,58 @@ def _slip_onset(p, theta0, mu, t_end, rows, st):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, error_model="numpy")
-def _telemetry_sample(p_base, theta_start, lift_phase, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
-    """One telemetry sample of a scene into ``out`` (one row of :data:`TELEMETRY`), no allocation.
+def _samples_into(rows, theta_start, pinned, scene, lift_phase, flight_cap, mu, out, work):  # type: ignore[no-untyped-def]
+    """Telemetry samples into ``out`` (one row of :data:`TELEMETRY` each), no allocation.
 
-    Rod 0 from ``theta_start`` with the cam's lift phase ``lift_phase`` (rad) at that moment.
+    Sample s: scene ``scene[s]`` (its row of ``rows``, start angle and pinned flag), rod 0 from its start angle
+    with the cam's lift phase ``lift_phase[s]`` (rad) at that moment.
     ``work``: (event row, _scratch, scene row, bottom scene row, slip rows, slip state) from :func:`_telemetry_work`.
     """
     ev, scratch, p, pb, slip_tr, slip_st = work
-    out[:] = math.nan
-    p[:] = p_base
-    p[_TH0], p[_A0] = theta_start, lift_phase
-    arc_end = _revolution_s(p_base)
-    lead = (theta_start + 0.5 * math.pi) / p_base[_WR] if not pinned else 0.0
-    if pinned:
-        out[0], out[1] = 0.0, 0.0
-    else:
-        _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
-        detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
-        out[0], out[1] = ev[_O_FOUND], 1.0 if detached else 0.0
-        if ev[_O_FOUND] == 1.0:
-            arc_end = ev[_O_TDEP]
-            out[2], out[3], out[4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
-            out[5], out[6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
-            out[7] = ev[_O_THC]
-        elif detached:
-            arc_end = ev[_O_TD0]
-    # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
-    pb[:] = p
-    pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
-    onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
-    if onset < math.inf:
-        out[8] = onset
-        out[9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
+    out[:, :] = math.nan
+    for s in range(scene.shape[0]):
+        i = scene[s]
+        theta0, stuck = theta_start[i], pinned[i]
+        p[:] = rows[i]
+        p[_TH0], p[_A0] = theta0, lift_phase[s]
+        arc_end = _revolution_s(p)
+        lead = (theta0 + 0.5 * math.pi) / p[_WR] if not stuck else 0.0
+        if stuck:
+            out[s, 0], out[s, 1] = 0.0, 0.0
+        else:
+            _event(p, False, math.inf, flight_cap, 0.0, ev, scratch)
+            detached = ev[_O_TD0] == ev[_O_TD0]  # not nan
+            out[s, 0], out[s, 1] = ev[_O_FOUND], 1.0 if detached else 0.0
+            if ev[_O_FOUND] == 1.0:
+                arc_end = ev[_O_TDEP]
+                out[s, 2], out[s, 3], out[s, 4] = ev[_O_TDEP], ev[_O_THD], ev[_O_ENERGY]
+                out[s, 5], out[s, 6] = ev[_O_T] - ev[_O_TDEP], 1.0 if ev[_O_PARTNER] == WALL else 0.0
+                out[s, 7] = ev[_O_THC]
+            elif detached:
+                arc_end = ev[_O_TD0]
+        # the carriage from the bottom: the same ride with the cam phase shifted back by ω_v·lead
+        pb[:] = p
+        pb[_TH0], pb[_A0] = -0.5 * math.pi, p[_A0] - p[_WV] * lead
+        onset = _slip_onset(pb, -0.5 * math.pi, mu, arc_end + lead, slip_tr, slip_st)
+        if onset < math.inf:
+            out[s, 8] = onset
+            out[s, 9] = (-0.5 * math.pi + p[_WR] * onset + math.pi) % _TWO_PI - math.pi
 
 
 @njit(cache=True, error_model="numpy")
-def _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, work):  # type: ignore[no-untyped-def]
-    """The K telemetry samples of one scene, lift phases 2πk/K, into ``out`` (K rows of :data:`TELEMETRY`)."""
-    for k in range(phases):
-        _telemetry_sample(p_base, theta_start, _TWO_PI * k / phases, flight_cap, mu, pinned, out[k], work)
+def _even_phases(scenes, phases):  # type: ignore[no-untyped-def]
+    """Scene index and lift phase 2πk/K of every sample of ``scenes`` scenes at K even phases, scene by scene."""
+    scene = np.empty(scenes * phases, dtype=np.int64)
+    lift_phase = np.empty(scenes * phases)
+    for i in range(scenes):
+        for k in range(phases):
+            scene[i * phases + k], lift_phase[i * phases + k] = i, _TWO_PI * k / phases
+    return scene, lift_phase
 
 
 @njit(cache=True, error_model="numpy")
 def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
-    """The work arrays of :func:`_telemetry_into` for scenes of up to n_max rods (made once per batch)."""
+    """The work arrays of :func:`_samples_into` for scenes of up to n_max rods (made once per batch)."""
     return (
         np.empty(len(OUT)),
         _scratch(n_max),
@@ -208,7 +216,9 @@ def _telemetry_work(n_max):  # type: ignore[no-untyped-def]
 @njit(cache=True, error_model="numpy")
 def _telemetry(p_base, theta_start, phases, flight_cap, mu, pinned):  # type: ignore[no-untyped-def]
     out = np.empty((phases, len(TELEMETRY)))
-    _telemetry_into(p_base, theta_start, phases, flight_cap, mu, pinned, out, _telemetry_work(int(p_base[_N])))
+    scene, lift_phase = _even_phases(1, phases)
+    rows, start, stuck = p_base.reshape(1, p_base.shape[0]), np.full(1, theta_start), np.full(1, pinned)
+    _samples_into(rows, start, stuck, scene, lift_phase, flight_cap, mu, out, _telemetry_work(int(p_base[_N])))
     return out
 
 
@@ -234,11 +244,11 @@ def telemetry_samples(
 
 @njit(cache=True, error_model="numpy")
 def _telemetry_batch(rows, theta_start, pinned, phases, flight_cap, mu):  # type: ignore[no-untyped-def]
-    out = np.empty((rows.shape[0], phases, len(TELEMETRY)))
+    out = np.empty((rows.shape[0] * phases, len(TELEMETRY)))
     work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
-    for s in range(rows.shape[0]):
-        _telemetry_into(rows[s], theta_start[s], phases, flight_cap, mu, pinned[s], out[s], work)
-    return out
+    scene, lift_phase = _even_phases(rows.shape[0], phases)
+    _samples_into(rows, theta_start, pinned, scene, lift_phase, flight_cap, mu, out, work)
+    return out.reshape(rows.shape[0], phases, len(TELEMETRY))
 
 
 def _scene_table(rows: FloatArray, theta_start_rad: FloatArray, pinned: NDArray[np.bool_]) -> tuple[Any, ...]:
@@ -272,9 +282,7 @@ def telemetry_batch(
 def _telemetry_at(rows, theta_start, pinned, scene, lift_phase, flight_cap, mu):  # type: ignore[no-untyped-def]
     out = np.empty((scene.shape[0], len(TELEMETRY)))
     work = _telemetry_work(int(rows[:, _N].max()) if rows.shape[0] > 0 else 1)
-    for s in range(scene.shape[0]):
-        i = scene[s]
-        _telemetry_sample(rows[i], theta_start[i], lift_phase[s], flight_cap, mu, pinned[i], out[s], work)
+    _samples_into(rows, theta_start, pinned, scene, lift_phase, flight_cap, mu, out, work)
     return out
 
 
