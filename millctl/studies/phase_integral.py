@@ -317,6 +317,8 @@ def integrated_summary(
         ra, rb = np.concatenate([ra, rm]), np.concatenate([rb, old_rb])
         score = np.concatenate([score, 0.5 * eps])
         used += np.bincount(at, minlength=size)
+    if not done:  # no points
+        done.append((ipt, hi - lo, ra, rb, score))
     point, width, ra, rb, score = (np.concatenate(column) for column in zip(*done, strict=True))
     t = np.concatenate(tables)
     half_width = 0.5 * width

@@ -94,3 +94,10 @@ def test_a_tighter_tolerance_takes_more_samples_and_lands_closer(config: MillCon
     for rtol, out in runs.items():
         assert np.all(out["cam_phase_error"] <= rtol) and np.all(error[rtol] <= rtol), (rtol, error[rtol])
     assert np.all(runs[0.002]["cam_phases_used"] > runs[0.05]["cam_phases_used"])
+
+
+def test_no_points_give_empty_columns(config: MillConfig) -> None:
+    model = MillModel.from_config(config)
+    none = np.zeros(0)
+    out = _integrated(model, none, none)
+    assert out["cam_phases_used"].shape == (0,) and out["impact_power_w"].shape == (0,)
