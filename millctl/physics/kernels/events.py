@@ -70,7 +70,7 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _rel
-from millctl.physics.kernels.trig import _fill_trig_rows
+from millctl.physics.kernels.trig import _fill_first_trig_rows
 
 _GAP_TURNS = np.array([[math.cos(2.0 * math.pi / n), math.sin(2.0 * math.pi / n)] for n in range(1, 65)])
 """cos, sin of 2π/n, the angle between neighbouring rods, for n = 1 … 64 (row n − 1)."""
@@ -198,7 +198,8 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
     """
     n = int(p[_N])
     tr = scratch[4][:n]
-    _fill_trig_rows(p, n, tr)
+    detaching = n if all_rods else 1  # rods="one": only rod 0 may leave the wall, only its N row is read
+    _fill_first_trig_rows(p, n, detaching, tr)
     st = scratch[5][:n]
     st[:, :] = 0.0
     det_columns = scratch[6]
@@ -215,10 +216,11 @@ def _event(p, all_rods, horizon, flight_cap, tol, out, scratch):  # type: ignore
     for i in range(n):
         st[i, _S_FLY], st[i, _S_T0], st[i, _S_TH] = 0.0, 0.0, p[_TH0] + i * 2.0 * math.pi / n
         st[i, _S_PC], st[i, _S_PS] = c_th, s_th
-        n_at_start = tr[i, 0] - g_eff0 * s_th  # N(0)/m in eq. 7's form (:func:`.trig._n_form01` at t = 0)
+        s_pin = s_th
         c_th, s_th = c_th * c_gap - s_th * s_gap, s_th * c_gap + c_th * s_gap
-        if i > 0 and not all_rods:
+        if i >= detaching:
             continue
+        n_at_start = tr[i, 0] - g_eff0 * s_pin  # N(0)/m in eq. 7's form (:func:`.trig._n_form01` at t = 0)
         if n_at_start <= 0.0:
             det_t[i] = 0.0
             unsupported[i] = 1.0

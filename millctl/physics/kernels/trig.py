@@ -64,6 +64,12 @@ def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
     The terms: g, and the cam's ±½ coupling. Returns nothing, so that leaf kernels (no reference counting) can
     call it.
     """
+    _fill_first_trig_rows(p, n, n, rows)
+
+
+@leaf_kernel
+def _fill_first_trig_rows(p, n, count, rows):  # type: ignore[no-untyped-def]
+    """:func:`_fill_trig_rows` for rods 0..count−1 of the scene's n only (one rod's event needs rod 0's alone)."""
     wr, wv, a0 = p[_WR], p[_WV], p[_A0]
     if p[_PAPER] != 0.0:
         constant = 2.0 * p[_R0] * wr * wr
@@ -72,7 +78,7 @@ def _fill_trig_rows(p, n, rows):  # type: ignore[no-untyped-def]
         constant = p[_R0] * wr * wr
         coupling = p[_RD] * wv * wv
     half = 0.5 * coupling
-    for i in range(n):
+    for i in range(count):
         th0 = p[_TH0] + i * 2.0 * math.pi / n
         rows[i, 0], rows[i, _T_COUNT] = constant, 3.0
         _set_term(rows, i, 0, p[_G], wr, th0 + 0.5 * math.pi)
