@@ -116,11 +116,12 @@ def _size(study: Any, runner: Any) -> tuple[int, float]:
     so that workers start only where the benchmark's rule N·c ≥ 4·w·S says they gain.
     """
     from millctl.studies.backends import point_cost_s
-    from millctl.studies.metrics import METRICS
+    from millctl.studies.metrics import METRICS, needs_slip_run
     from millctl.studies.run import grid_points
 
     m = study.metrics
-    cost = point_cost_s({METRICS[n].level for n in runner.metrics}, m.revolutions, m.cam_phases, m.slip_phases)
+    levels = {METRICS[n].level for n in runner.metrics}
+    cost = point_cost_s(levels, m.revolutions, m.cam_phases, m.slip_phases, needs_slip_run(runner.metrics))
     if study.is_optimisation:
         settings = study.optimiser
         population = (settings.population if settings is not None else 8) * len(study.parameters)

@@ -52,6 +52,8 @@ class Detachment:
     """The search covered [t_start, horizon_s]."""
     at_start: bool = False
     """N ≤ 0 already at t_start: the rod is never held."""
+    held_from_s: float = math.nan
+    """Where the search began: t_start, or with ``rearm`` the end of the dip it skipped (nan: N never rose)."""
 
 
 def _wrap_pi(angle: float) -> float:
@@ -161,7 +163,7 @@ def find_detachment(
     def _result(t: float, at_start: bool = False) -> Detachment:
         theta = _wrap_pi(theta0 + scene.omega_r_rad_s * t)
         alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t) % (2.0 * math.pi)
-        return Detachment(True, t, theta, alpha, horizon_s, at_start)
+        return Detachment(True, t, theta, alpha, horizon_s, at_start, t_start_s)
 
     if rearm:
         rearmed = _rearm(f, t_start_s, horizon_s)
@@ -172,7 +174,7 @@ def find_detachment(
         return _result(t_start_s, at_start=True)
     root = first_falling_zero(f, t_start_s, horizon_s)
     if root is None:
-        return Detachment(False, math.nan, math.nan, math.nan, horizon_s)
+        return Detachment(False, math.nan, math.nan, math.nan, horizon_s, held_from_s=t_start_s)
     return _result(root)
 
 

@@ -69,14 +69,19 @@ class Contact:
     the flight's own clock, never the difference of two absolute times (docs/model.md, eq. 10)."""
 
 
-def scan_step_s(scene: Scene) -> float:
-    """Bracketing step (s): 1/16 of the shortest of the cam period, the revolution and the fall time √(2 r_r/g)."""
+def shortest_time_s(scene: Scene) -> float:
+    """The shortest of the cam's lift period, the revolution and the fall time √(2 r_r/g) (s)."""
     m = scene.model
     scales = [math.sqrt(2.0 * m.rod_radius_m / m.g_m_s2)]
     for w in (scene.lift_omega_rad_s, scene.omega_r_rad_s):
         if w > 0.0:
             scales.append(2.0 * math.pi / w)
-    return min(scales) / 16.0
+    return min(scales)
+
+
+def scan_step_s(scene: Scene) -> float:
+    """Bracketing step (s): 1/16 of the shortest time scale (:func:`shortest_time_s`)."""
+    return shortest_time_s(scene) / 16.0
 
 
 def _wall_sep(scene: Scene, s: RodState) -> tuple[Callable[[float], float], Callable[[float], float]]:
@@ -109,10 +114,17 @@ def _rod_sep(scene: Scene, a: RodState, b: RodState) -> tuple[Callable[[float], 
     return sep, dsep
 
 
-def _accel_bound(scene: Scene) -> float:
-    """Bound on any rod's acceleration in the vial frame (m/s²): g + r_d ω_v² in flight, r0 ω_r² pinned."""
+def _accel_bound(scene: Scene, states: list[RodState]) -> float:
+    """Bound on any rod's acceleration in the vial frame (m/s²): g + r_d ω_v² in flight, r0 w² held.
+
+    w is ω_r for a carried rod, its slide step's mean rate for a sliding one (:mod:`.wall_slide`).
+    """
     m = scene.model
-    return max(m.g_m_s2 + m.eccentricity_m * scene.lift_omega_rad_s**2, m.r0_m * scene.omega_r_rad_s**2)
+    w2 = scene.omega_r_rad_s**2
+    for s in states:
+        if isinstance(s, WallState):
+            w2 = max(w2, s.rate_rad_s(scene) ** 2)
+    return max(m.g_m_s2 + m.eccentricity_m * scene.lift_omega_rad_s**2, m.r0_m * w2)
 
 
 def _scan_arrays(scene: Scene, a: RodState, b: RodState | None, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -166,7 +178,7 @@ def first_contact_time(
     elif sign_sep(t_start_s) <= 0.0:
         return t_start_s
     h = scan_step_s(scene)
-    accel = 2.0 * _accel_bound(scene)
+    accel = 2.0 * _accel_bound(scene, [a] if b is None else [a, b])
     t_prev, s_prev, ds_prev = t_start_s, sign_sep(t_start_s), dsep(t_start_s)
     while t_prev < t_end_s:
         n = _SCAN_SAMPLES
@@ -255,7 +267,7 @@ def earliest_contact(
     funcs = [_pair_functions(scene, states, i, j, t_start_s, n_d.get(i, 0.0)) for i, j in pairs]
     t_ref = [states[i].t0_s for i, _ in pairs]
     h = scan_step_s(scene)
-    accel = 2.0 * _accel_bound(scene)
+    accel = 2.0 * _accel_bound(scene, states)
     r0 = scene.model.r0_m
     ii = np.array([i for i, _ in pairs])
     jj = np.array([j for _, j in pairs])
@@ -322,9 +334,10 @@ def _all_positions(scene: Scene, states: list[RodState], ts: np.ndarray) -> tupl
     x, y, vx, vy = (np.empty((len(states), len(ts))) for _ in range(4))
     pinned = [k for k, st in enumerate(states) if isinstance(st, WallState)]
     if pinned:
-        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        r0 = scene.model.r0_m
         t0 = np.array([states[k].t0_s for k in pinned])
         th0 = np.array([states[k].theta0_rad for k in pinned])  # type: ignore[union-attr]
+        w = np.array([states[k].rate_rad_s(scene) for k in pinned])[:, None]  # type: ignore[union-attr]
         theta = th0[:, None] + w * (ts[None, :] - t0[:, None])
         c, sn = np.cos(theta), np.sin(theta)
         x[pinned], y[pinned], vx[pinned], vy[pinned] = r0 * c, r0 * sn, -r0 * w * sn, r0 * w * c

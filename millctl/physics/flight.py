@@ -42,21 +42,30 @@ def _s3(x: float) -> float:
 
 @dataclass(frozen=True)
 class WallState:
-    """A rod pinned to the wall from t_0 on, at angle θ_0 + ω_r (t − t_0)."""
+    """A rod held on the wall from t_0 on, at angle θ_0 + w (t − t_0), w = ω_r + ``rate_offset_rad_s``.
+
+    Carried (the paper's picture) the offset is 0; a rod sliding on the wall (:mod:`.wall_slide`) moves
+    along the chord of its slide step, at that step's mean rate.
+    """
 
     t0_s: float
     theta0_rad: float
+    rate_offset_rad_s: float = 0.0
+
+    def rate_rad_s(self, scene: Scene) -> float:
+        """W (rad/s): ω_r carried, the slide step's mean rate sliding."""
+        return scene.omega_r_rad_s + self.rate_offset_rad_s
 
     def rel(self, scene: Scene, t_s: float) -> tuple[float, float, float, float]:
         """(x, y, vx, vy) relative to the vial centre (m, m/s)."""
-        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        r0, w = scene.model.r0_m, self.rate_rad_s(scene)
         th = self.theta0_rad + w * (t_s - self.t0_s)
         c, s = math.cos(th), math.sin(th)
         return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
 
     def rel_array(self, scene: Scene, t_s: FloatArray) -> tuple[FloatArray, ...]:
         """Vectorised :meth:`rel`."""
-        r0, w = scene.model.r0_m, scene.omega_r_rad_s
+        r0, w = scene.model.r0_m, self.rate_rad_s(scene)
         th = self.theta0_rad + w * (t_s - self.t0_s)
         c, s = np.cos(th), np.sin(th)
         return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
@@ -73,6 +82,8 @@ class FlightState:
     uy0_m_s: float
     from_wall: bool = False
     """True when the flight starts with the rod on the wall (departure: the wall gap has a triple root)."""
+    departure_rate_offset_rad_s: float = 0.0
+    """From the wall: its departure rate φ̇_d − ω_r (0 carried; a sliding rod leaves at its own φ̇_d)."""
 
     def _alpha0(self, scene: Scene) -> float:
         return scene.lift_alpha0_rad + scene.lift_omega_rad_s * self.t0_s
@@ -114,6 +125,16 @@ def depart(scene: Scene, wall: WallState, t_d_s: float) -> FlightState:
     return FlightState(t_d_s, x, y, vx, vy, from_wall=True)
 
 
+def depart_sliding(scene: Scene, t_d_s: float, theta_rad: float, rate_rad_s: float) -> FlightState:
+    """The flight of a rod that leaves the wall while sliding, at φ_d with its own rate φ̇_d (:mod:`.wall_slide`)."""
+    r0 = scene.model.r0_m
+    c, s = math.cos(theta_rad), math.sin(theta_rad)
+    offset = rate_rad_s - scene.omega_r_rad_s
+    w = scene.omega_r_rad_s + offset
+    return FlightState(t_d_s, r0 * c, r0 * s, -r0 * w * s, r0 * w * c, from_wall=True,
+                       departure_rate_offset_rad_s=offset)  # fmt: skip
+
+
 def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, tau_s: float) -> float:
     """(r0² − |d|²)/τ² for a departing rod, or /τ³ when N_d = 0 (the triple root divided out).
 
@@ -123,7 +144,7 @@ def departure_wall_gap(scene: Scene, flight: FlightState, n_d_m2_s2: float, tau_
     inside the wall circle. ``tau_s`` is the time since departure, τ = t − t_d (s).
     """
     tau = tau_s  # the flight's own clock
-    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s, scene.lift_omega_rad_s
+    r0, w_r, w_v = scene.model.r0_m, scene.omega_r_rad_s + flight.departure_rate_offset_rad_s, scene.lift_omega_rad_s
     r_d, g = scene.model.eccentricity_m, scene.model.g_m_s2
     a0 = flight._alpha0(scene)
     s_d, c_d = flight.y0_m / r0, flight.x0_m / r0
@@ -143,10 +164,14 @@ ZERO_FLIGHT_RTOL = 1e-12
 """A departure whose reduced wall gap at τ = 0 is ≤ this × its scale is a zero-length flight (docs/model.md)."""
 
 
-def departure_gap_scale(scene: Scene, n_d_m2_s2: float) -> float:
-    """The size of the terms of :func:`departure_wall_gap` at τ = 0 (its units: m²/s³ when n_d = 0, else m²/s²)."""
+def departure_gap_scale(scene: Scene, n_d_m2_s2: float, rate_offset_rad_s: float = 0.0) -> float:
+    """The size of the terms of :func:`departure_wall_gap` at τ = 0 (its units: m²/s³ when n_d = 0, else m²/s²).
+
+    ``rate_offset_rad_s``: the flight's departure rate φ̇_d − ω_r (0: carried).
+    """
     m = scene.model
-    w_r, w_v, r_d, g, r0 = scene.omega_r_rad_s, scene.lift_omega_rad_s, m.eccentricity_m, m.g_m_s2, m.r0_m
+    w_r, w_v, r_d, g, r0 = (scene.omega_r_rad_s + rate_offset_rad_s, scene.lift_omega_rad_s, m.eccentricity_m,
+                            m.g_m_s2, m.r0_m)  # fmt: skip
     if n_d_m2_s2 == 0.0:
         return 2.0 * r0 * (r_d * w_v**3 + (g + r_d * w_v * w_v) * w_r)
     return r0 * (r0 * w_r * w_r + g + r_d * w_v * w_v)
@@ -161,7 +186,7 @@ def zero_length_departure(scene: Scene, flight: FlightState, n_d_m2_s2: float) -
     the true N > 0, or N touching zero with zero slope). Every engine applies this one rule.
     """
     gap = departure_wall_gap(scene, flight, n_d_m2_s2, 0.0)
-    return gap <= ZERO_FLIGHT_RTOL * departure_gap_scale(scene, n_d_m2_s2)
+    return gap <= ZERO_FLIGHT_RTOL * departure_gap_scale(scene, n_d_m2_s2, flight.departure_rate_offset_rad_s)
 
 
 __all__ = [
@@ -170,6 +195,7 @@ __all__ = [
     "RodState",
     "WallState",
     "depart",
+    "depart_sliding",
     "departure_gap_scale",
     "departure_wall_gap",
     "zero_length_departure",

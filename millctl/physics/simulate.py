@@ -19,7 +19,10 @@ whichever comes first. Contact rules (a statistics tool, not a contact solver):
   ``SETTLE_SPEED_FACTOR``·√(g r_r), or more than ``MAX_BOUNCES`` rod–rod impacts in
   one flight — settles into the pile: it is put back on the wall at its angle; where
   the wall cannot hold it there (N ≤ 0) it rides the pile until N has risen above zero
-  and detaches at the next falling zero (the zero-length rule's re-arming).
+  and detaches at the next falling zero (the zero-length rule's re-arming);
+* with a finite ``friction`` μ a held rod rides with slip (:mod:`.wall_slide`): carried until the earlier
+  of its detachment and the end of its stick, then slide steps along their chords until it regrips (carried
+  again) or leaves at its own rate; each detachment records the time it slid (``slid_s``).
 
 Cost: roughly 1 ms of CPython per event for Set A (scales with n for the pair
 scans), i.e. seconds for thousands of events. This is the reference (the oracle);
@@ -39,11 +42,21 @@ from numpy.typing import NDArray
 from millctl.config.models import ModelVariant
 from millctl.errors import PhysicsInputError
 from millctl.physics.detachment import find_detachment
-from millctl.physics.events import WALL, Contact, earliest_contact
-from millctl.physics.flight import FlightState, RodState, WallState, depart
+from millctl.physics.events import WALL, Contact, earliest_contact, scan_step_s
+from millctl.physics.flight import FlightState, RodState, WallState, depart, depart_sliding
 from millctl.physics.impact import impact_energy_j
 from millctl.physics.kinematics import true_normal_force_per_mass, vial_centre_m
 from millctl.physics.model import Scene
+from millctl.physics.wall_slide import (
+    DETACH,
+    MAX_CHANGES,
+    REGRIP,
+    SLIDE_STEP,
+    slide_direction,
+    slide_step,
+    slide_step_s,
+    stick_slip_onset,
+)
 
 IMPACT_DTYPE = np.dtype(
     [
@@ -63,11 +76,17 @@ IMPACT_DTYPE = np.dtype(
 )
 """One row per impact."""
 
-DETACHMENT_DTYPE = np.dtype([("time_s", "f8"), ("rod", "i4"), ("theta_rad", "f8"), ("alpha_rad", "f8")])
-"""One row per detachment."""
+DETACHMENT_DTYPE = np.dtype(
+    [("time_s", "f8"), ("rod", "i4"), ("theta_rad", "f8"), ("alpha_rad", "f8"), ("slid_s", "f8")]
+)
+"""One row per detachment; ``slid_s`` the time the rod slid on the wall since it was last put there (0: no slip)."""
 
 SETTLE_SPEED_FACTOR = 0.01
 MAX_BOUNCES = 20
+MIN_HOP_RTOL = 1e-6
+"""A wall landing after a flight shorter than this × the contact scan's step (~1e-9 s) ends a Zeno chain: the
+rod lands where N is about to dip again below zero, hop after ever shorter hop (each ~20× shorter, down to
+1e-12 s, where rounding alone decided which engine's chain had one hop more); it rides through the dip."""
 RELEASE_GAP_RTOL = 1e-9
 """An excluded pair is released when its separation |d|² − (2 r_r)² exceeds this × r0² (the search's near-zero)."""
 
@@ -84,6 +103,12 @@ class _Run:
     bounces: dict[int, int] = field(default_factory=dict)
     unsupported: set[int] = field(default_factory=set)
     """Rods whose next detachment is at the start of their search with N < 0 (not a falling zero)."""
+    slide_step_s: float = 0.0
+    friction: float = math.inf
+    """μ of the slip ride (:mod:`.wall_slide`); inf: the paper's carriage, no slip."""
+    ride: dict[int, list[float]] = field(default_factory=dict)
+    """A held rod's slip ride: [next event (:data:`~.wall_slide.SLIDE_STEP`, REGRIP, DETACH), direction s
+    (0 carried), φ and φ̇ at that event, time slid, stick ↔ slide changes] (the kernel's ROD_BOOK columns)."""
     impacts: list[tuple[float, ...]] = field(default_factory=list)
     detachments: list[tuple[float, ...]] = field(default_factory=list)
 
@@ -104,7 +129,12 @@ def _alpha_rad(scene: Scene, t_s: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def simulate_compiled(
-    scene: Scene, t_end_s: float, max_events: int = 100_000, tol_s: float = 0.0, threshold_j: float = 0.0
+    scene: Scene,
+    t_end_s: float,
+    max_events: int = 100_000,
+    tol_s: float = 0.0,
+    threshold_j: float = 0.0,
+    friction: float = math.inf,
 ) -> tuple[SimulationResult, int]:
     """The same run as :func:`simulate`, compiled (:func:`~millctl.physics.kernels.many_event.many_events`).
 
@@ -115,7 +145,8 @@ def simulate_compiled(
     from millctl.physics.kernels import scene_row
     from millctl.physics.kernels.many_event import many_events
 
-    rows, detached, _ = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s)
+    rows, detached, _ = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s,
+                                    _check_friction(friction))  # fmt: skip
     impacts = np.zeros(len(rows), dtype=IMPACT_DTYPE)
     columns = ("time_s", "rod", "partner", "x_m", "y_m", "theta_rad", "normal_velocity_m_s",
                "tangential_velocity_m_s", "speed_abs_m_s", "energy_j", "flight_time_s")  # fmt: skip
@@ -124,6 +155,7 @@ def simulate_compiled(
     impacts["alpha_rad"] = _alpha_rad(scene, rows[:, 0])
     detachments = np.zeros(len(detached), dtype=DETACHMENT_DTYPE)
     detachments["time_s"], detachments["rod"], detachments["theta_rad"] = detached[:, 0], detached[:, 1], detached[:, 2]
+    detachments["slid_s"] = detached[:, 3]
     detachments["alpha_rad"] = _alpha_rad(scene, detached[:, 0])
     return SimulationResult(impacts, detachments, t_end_s), int(np.count_nonzero(rows[:, 11]))
 
@@ -139,6 +171,7 @@ def _repin(run: _Run, rod: int, t_s: float, rearm: bool, settled: bool = False) 
     run.states[rod] = WallState(t_s, math.atan2(y, x))
     run.n_d.pop(rod, None)
     run.bounces.pop(rod, None)
+    run.ride.pop(rod, None)
     for j in range(len(run.states)):
         if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s):
             run.excluded.add((min(rod, j), max(rod, j)))
@@ -157,22 +190,60 @@ def _schedule(run: _Run, rod: int, t_s: float, rearm: bool = False, settled: boo
         run.unsupported.add(rod)
     else:
         run.unsupported.discard(rod)
+    ride = run.ride.setdefault(rod, [DETACH, 0.0, math.nan, math.nan, 0.0, 0.0])
+    ride[0], ride[1] = DETACH, 0.0
+    carried = not (det.detached and det.at_start) and math.isfinite(det.held_from_s)
+    if math.isfinite(run.friction) and carried and ride[5] < MAX_CHANGES:
+        start, stop = det.held_from_s, min(run.next_detach[rod], run.t_end_s)
+        onset = stick_slip_onset(run.scene, theta_at_zero, start, stop, run.friction) if start <= stop else math.inf
+        if onset < run.next_detach[rod] and onset <= run.t_end_s:
+            theta = s.theta0_rad + s.rate_rad_s(run.scene) * (onset - s.t0_s)
+            ride[:4] = [SLIDE_STEP, slide_direction(run.scene, onset, theta), theta, run.scene.omega_r_rad_s]
+            run.next_detach[rod] = onset
+
+
+def _slide(run: _Run, rod: int, t_s: float) -> None:
+    """One slide step of a held rod from t (:func:`~.wall_slide.slide_step`): it moves along the step's chord."""
+    ride, w_r = run.ride[rod], run.scene.omega_r_rad_s
+    h = min(run.slide_step_s, run.t_end_s - t_s)
+    if not h > 0.0:
+        run.next_detach[rod] = math.inf
+        return
+    step = slide_step(run.scene, t_s, ride[2], ride[3], ride[1], run.friction, h)
+    if step.h_s == 0.0:  # the true N ≤ 0 where the slide would begin: the rod leaves carried, unsupported
+        ride[0], ride[1], run.next_detach[rod] = DETACH, 0.0, t_s
+        run.unsupported.add(rod)
+        return
+    run.states[rod] = WallState(t_s, ride[2], (step.theta_rad - ride[2]) / step.h_s - w_r)
+    ride[0], ride[2], ride[3], ride[4] = step.ends, step.theta_rad, step.rate_rad_s, ride[4] + step.h_s
+    run.next_detach[rod] = t_s + step.h_s
+
+
+def _regrip(run: _Run, rod: int, t_s: float) -> None:
+    """The sliding rod has caught up with the wall at t: carried again from its angle, the stick tried anew."""
+    ride = run.ride[rod]
+    run.states[rod] = WallState(t_s, ride[2])
+    ride[5] += 1.0
+    _schedule(run, rod, t_s)
 
 
 def _depart(run: _Run, rod: int, t_s: float) -> None:
     scene, wall = run.scene, run.states[rod]
     assert isinstance(wall, WallState)
-    flight = depart(scene, wall, t_s)
+    ride = run.ride.pop(rod, None)
+    sliding = ride is not None and ride[1] != 0.0
+    flight = depart_sliding(scene, t_s, ride[2], ride[3]) if ride is not None and sliding else depart(scene, wall, t_s)
     theta = math.atan2(flight.y0_m, flight.x0_m)
     run.states[rod] = flight
     run.next_detach[rod] = math.inf
     # corrected, at a falling zero of N: N(t_d) = 0 by construction, the departure root is triple (n_d = 0
-    # exactly, whatever the root finder's residual); a rod that starts unsupported or the paper's law: r0·N_true/m
-    exact = scene.model.variant is ModelVariant.CORRECTED and rod not in run.unsupported
+    # exactly, whatever the root finder's residual); a rod that starts unsupported or the paper's law: r0·N_true/m;
+    # a sliding rod leaves at the falling zero of its true n (either variant)
+    exact = sliding or (scene.model.variant is ModelVariant.CORRECTED and rod not in run.unsupported)
     run.n_d[rod] = 0.0 if exact else scene.model.r0_m * true_normal_force_per_mass(scene, t_s, theta)
     run.unsupported.discard(rod)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi)
-    run.detachments.append((t_s, rod, theta, alpha))
+    run.detachments.append((t_s, rod, theta, alpha, 0.0 if ride is None else ride[4]))
     # a neighbour it leaves touching (a separation of rounding size) is not a contact: excluded until apart
     for j in range(len(run.states)):
         if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s, RELEASE_GAP_RTOL * scene.model.r0_m**2):
@@ -224,7 +295,13 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         if t_det > run.t_end_s:
             return None
         rod = run.next_detach.index(t_det)
-        _depart(run, rod, t_det)
+        ends = run.ride[rod][0] if rod in run.ride else DETACH
+        if ends == SLIDE_STEP:
+            _slide(run, rod, t_det)
+        elif ends == REGRIP:
+            _regrip(run, rod, t_det)
+        else:
+            _depart(run, rod, t_det)
         return t_det
     zero_length = contact.partner == WALL and contact.flight_time_s == 0.0
     if not zero_length:
@@ -232,7 +309,8 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         if stop_after_first:
             return None  # nothing after the first impact is needed: no re-scheduling
     if contact.partner == WALL:
-        _repin(run, contact.rod, contact.time_s, rearm=zero_length)
+        hop = contact.flight_time_s < MIN_HOP_RTOL * scan_step_s(scene)  # the end of a Zeno chain of hops
+        _repin(run, contact.rod, contact.time_s, rearm=zero_length or hop)
     else:
         run.bounces[contact.rod] = run.bounces.get(contact.rod, 0) + 1
         settle = SETTLE_SPEED_FACTOR * math.sqrt(scene.model.g_m_s2 * scene.model.rod_radius_m)
@@ -243,17 +321,31 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
     return contact.time_s
 
 
+def _check_friction(friction: float) -> float:
+    if not friction >= 0.0:
+        raise PhysicsInputError(f"friction μ = {friction} must be ≥ 0 (inf: the paper's carriage, no slip)")
+    return float(friction)
+
+
 def simulate(
-    scene: Scene, t_end_s: float, max_events: int = 100_000, stop_after_first: bool = False, tol_s: float = 0.0
+    scene: Scene,
+    t_end_s: float,
+    max_events: int = 100_000,
+    stop_after_first: bool = False,
+    tol_s: float = 0.0,
+    friction: float = math.inf,
 ) -> SimulationResult:
     """Run the multi-rod event simulation from t = 0 (all rods pinned at eq. 11's angles) to t_end (s).
 
-    ``tol_s`` is the contact root finder's time tolerance (0: ≈ 4 ulp).
+    ``tol_s`` is the contact root finder's time tolerance (0: ≈ 4 ulp). ``friction``: μ of the held rods'
+    slip ride (:mod:`.wall_slide`; ``scene.model.powder_friction`` is the model's); inf (default) carries
+    them as the paper does. Every slide step counts as an event of ``max_events``.
     """
     if not (math.isfinite(t_end_s) and t_end_s >= 0.0):
         raise PhysicsInputError(f"t_end_s = {t_end_s} must be a finite time ≥ 0")
     n = scene.model.n_rods
     run = _Run(scene, t_end_s, [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(n)], [math.inf] * n, tol_s)
+    run.friction, run.slide_step_s = _check_friction(friction), slide_step_s(scene)
     for i in range(n):
         _schedule(run, i, 0.0)
     t: float | None = 0.0

@@ -28,7 +28,7 @@ from typing import Any, Protocol
 
 from millctl.errors import InvalidInputError
 from millctl.studies.engine import PointTask, evaluate_batch
-from millctl.studies.metrics import METRICS
+from millctl.studies.metrics import METRICS, needs_slip_run
 
 Rows = list[dict[str, Any]]
 
@@ -210,11 +210,14 @@ class DaskBackend:
         self.close()
 
 
-POINT_S = {"a": 5e-5, "b_sample": 6e-6, "s_phase": 5e-2, "c_point": 3e-4, "c_revolution": 1.05e-3}
+POINT_S = {"a": 5e-5, "b_sample": 6e-6, "s_phase": 5e-2, "c_point": 3e-4, "c_revolution": 1.05e-3,
+           "c_slip_revolution": 2e-3}  # fmt: skip
 """Nominal serial cost of a point through the runner (s, wall, warm) by level: level (a) whole; level (b)
 per cam-phase sample; level (s) per slip-ridden phase; level (c) a point plus one per simulated
-revolution. From one serial run of bench/study.py's studies (level (c) 1.4 ms a point at one revolution,
-4.5 ms at four; level (s) 0.45 s a point at 8 phases; level (b) integrated 2.2e-4 s a point at 37 samples)."""
+revolution, and its second run with the slip ride one more per revolution. From one serial run of
+bench/study.py's studies (level (c) 1.4 ms a point at one revolution, 4.5 ms at four; level (s) 0.45 s a
+point at 8 phases; level (b) integrated 2.2e-4 s a point at 37 samples) and bench/level_c.py (with slip
+0.14 s for 20 scenes of four revolutions: the rods slide, ~430 slide steps an event)."""
 INTEGRATED_SAMPLES = 28
 """Level (b) integrated over the cam phase: the samples a point takes on the benchmark's 100 × 100 map
 (bench/study.py, "Where the integrated map's time goes": 25.3 a point with the adaptive rule of
@@ -224,12 +227,17 @@ WORKER_STARTUP_S = 3.0
 
 
 def point_cost_s(
-    levels: Iterable[str], revolutions: float = 4.0, cam_phases: int | None = None, slip_phases: int = 8
+    levels: Iterable[str],
+    revolutions: float = 4.0,
+    cam_phases: int | None = None,
+    slip_phases: int = 8,
+    slip_run: bool = False,
 ) -> float:
     """c: the nominal serial cost of one point (s) of a study with metrics of ``levels`` ("a", "b", "s", "c").
 
     Level (b) costs its K samples (``cam_phases``; None: integrated, :data:`INTEGRATED_SAMPLES`), level (s)
-    its ``slip_phases`` rides and level (c) its ``revolutions`` of simulated time, at :data:`POINT_S`.
+    its ``slip_phases`` rides and level (c) its ``revolutions`` of simulated time, twice with ``slip_run`` (the
+    ``slip_sim_*`` metrics, :func:`~millctl.studies.metrics.needs_slip_run`), at :data:`POINT_S`.
     """
     wanted = set(levels)
     cost = POINT_S["a"]
@@ -239,6 +247,8 @@ def point_cost_s(
         cost += POINT_S["s_phase"] * slip_phases
     if "c" in wanted:
         cost += POINT_S["c_point"] + POINT_S["c_revolution"] * revolutions
+        if slip_run:
+            cost += POINT_S["c_slip_revolution"] * revolutions
     return cost
 
 
@@ -266,7 +276,7 @@ def pool_tasks(
     first = batches[0][0]
     levels = {METRICS[n].level for n in first.metrics}
     s = first.settings
-    point_s = point_cost_s(levels, s.revolutions, s.cam_phases or None, s.slip_phases)
+    point_s = point_cost_s(levels, s.revolutions, s.cam_phases or None, s.slip_phases, needs_slip_run(first.metrics))
     points = sum(len(b) for b in batches)
     mean_batch_s = point_s * points / len(batches)
     per_task = max(1, math.ceil(least_s / mean_batch_s))

@@ -124,11 +124,13 @@ _TWO_PI = 2.0 * math.pi
 
 
 # state columns of a rod: flying flag, t0, pinned angle at t0, x0, y0, ux0, uy0 (vial frame), n_d, sin α0, cos α0,
-# and of a held rod cos, sin of its angle carried back to t = 0, θ_pin − ω_r t0 (the contact scan turns it to any t)
-(_S_FLY, _S_T0, _S_TH, _S_X, _S_Y, _S_UX, _S_UY, _S_ND, _S_SA, _S_CA, _S_PC, _S_PS) = range(12)
+# of a held rod cos, sin of its angle carried back to t = 0, θ_pin − ω_r t0 (the contact scan turns it to any t),
+# and its rate's offset from ω_r (0 carried; a sliding rod's slide step's mean rate − ω_r, physics.wall_slide),
+# which a flight from the wall keeps as its departure rate's (the wall gap's triple root, motion._departure_gap)
+(_S_FLY, _S_T0, _S_TH, _S_X, _S_Y, _S_UX, _S_UY, _S_ND, _S_SA, _S_CA, _S_PC, _S_PS, _S_DW) = range(13)
 
 
-_STATE_COLUMNS = 12
+_STATE_COLUMNS = 13
 
 
 # function codes for the root finder

@@ -9,12 +9,18 @@ and :data:`DETACHMENT` (the columns of :data:`millctl.physics.simulate.IMPACT_DT
 
 from __future__ import annotations
 
-ROD_BOOK = ("next_detach_s", "unsupported", "from_wall", "bounces")
-"""Columns of a rod's bookkeeping row: its next detachment (s; inf: none before the end), 1.0 when that
-detachment is at the start of its search with N < 0 (not a falling zero), 1.0 while its flight began on
-the wall (the wall gap has the departure's triple root), and its rod–rod impacts in the current flight."""
+ROD_BOOK = ("next_event_s", "unsupported", "from_wall", "bounces", "ends", "direction", "theta_rad", "rate_rad_s",
+            "slid_s", "changes")  # fmt: skip
+"""Columns of a rod's bookkeeping row: its next held event (s; inf: none before the end), 1.0 when that is a
+detachment at the start of its search with N < 0 (not a falling zero), 1.0 while its flight began on
+the wall (the wall gap has the departure's triple root), and its rod–rod impacts in the current flight;
+its slip ride (:mod:`millctl.physics.wall_slide`): what the next held event is (DETACH, SLIDE_STEP or
+REGRIP), the slide's direction s (0 carried), φ and φ̇ at that event, the time slid since it was put on
+the wall, and its stick ↔ slide changes since."""
 
-(_B_DET, _B_UNSUP, _B_FROM_WALL, _B_BOUNCES) = range(len(ROD_BOOK))
+(_B_DET, _B_UNSUP, _B_FROM_WALL, _B_BOUNCES, _B_ENDS, _B_DIR, _B_PHI, _B_RATE, _B_SLID, _B_CHANGES) = range(
+    len(ROD_BOOK)
+)
 
 IMPACT = (
     "time_s",
@@ -37,16 +43,18 @@ IMPACT = (
     len(IMPACT)
 )
 
-DETACHMENT = ("time_s", "rod", "theta_rad")
-"""Columns of a detachment row."""
+DETACHMENT = ("time_s", "rod", "theta_rad", "slid_s")
+"""Columns of a detachment row (``slid_s``: the time the rod slid on the wall before it left, 0 carried)."""
 
-(_D_T, _D_ROD, _D_TH) = range(len(DETACHMENT))
+(_D_T, _D_ROD, _D_TH, _D_SLID) = range(len(DETACHMENT))
 
 SETTLE_SPEED_FACTOR = 0.01
 """A rod–rod impact slower than this × √(g r_r) settles the rod into the pile (as :mod:`..simulate`)."""
+MIN_HOP_RTOL = 1e-6
+"""A wall landing after a flight shorter than this × the scan's step ends a Zeno chain (as :mod:`..simulate`)."""
 MAX_BOUNCES = 20
 """More rod–rod impacts than this in one flight settle the rod too."""
 SCAN_SAMPLES = 32
 """Samples a chunk of the bracketing scan (as :mod:`millctl.physics.events`)."""
 
-__all__ = ["DETACHMENT", "IMPACT", "MAX_BOUNCES", "ROD_BOOK", "SCAN_SAMPLES", "SETTLE_SPEED_FACTOR"]
+__all__ = ["DETACHMENT", "IMPACT", "MAX_BOUNCES", "MIN_HOP_RTOL", "ROD_BOOK", "SCAN_SAMPLES", "SETTLE_SPEED_FACTOR"]

@@ -20,6 +20,7 @@ from millctl.physics.kernels.layout import (
     _RR,
     _RTOL,
     _S_CA,
+    _S_DW,
     _S_ND,
     _S_SA,
     _S_T0,
@@ -39,7 +40,7 @@ _SEP, _DSEP = 0, 1
 @njit(cache=True)
 def _gap_tau(p, st, i, tau):  # type: ignore[no-untyped-def]
     """flight.departure_wall_gap in the flight's own clock τ: the wall gap with the departure root divided out."""
-    r0, w_r, w_v, r_d, g = p[_R0], p[_WR], p[_WV], p[_RD], p[_G]
+    r0, w_r, w_v, r_d, g = p[_R0], p[_WR] + st[i, _S_DW], p[_WV], p[_RD], p[_G]  # w_r: the departure rate
     s_d, c_d = st[i, _S_Y] / r0, st[i, _S_X] / r0
     x = w_v * tau
     sa, ca = st[i, _S_SA], st[i, _S_CA]

@@ -21,6 +21,7 @@ from millctl.physics.kernels.layout import (
     _RD,
     _RR,
     _S_CA,
+    _S_DW,
     _S_FLY,
     _S_ND,
     _S_SA,
@@ -41,7 +42,7 @@ from millctl.physics.kernels.layout import (
 def _rel(p, st, i, t):  # type: ignore[no-untyped-def]
     """(x, y, vx, vy) of rod i relative to the vial centre at t."""
     if st[i, _S_FLY] == 0.0:
-        r0, w = p[_R0], p[_WR]
+        r0, w = p[_R0], p[_WR] + st[i, _S_DW]  # carried: ω_r; sliding: the slide step's mean rate
         th = st[i, _S_TH] + w * (t - st[i, _S_T0])
         c, s = math.cos(th), math.sin(th)
         return r0 * c, r0 * s, -r0 * w * s, r0 * w * c
@@ -101,7 +102,7 @@ def _departure_gap(p, st, i, t):  # type: ignore[no-untyped-def]
     """(r0² − |d|²)/τ² of a rod that left the wall at t0, or /τ³ when n_d = 0 (flight.departure_wall_gap)."""
     t0 = st[i, _S_T0]
     tau = t - t0
-    r0, w_r, w_v, r_d, g = p[_R0], p[_WR], p[_WV], p[_RD], p[_G]
+    r0, w_r, w_v, r_d, g = p[_R0], p[_WR] + st[i, _S_DW], p[_WV], p[_RD], p[_G]  # w_r: the departure rate
     s_d, c_d = st[i, _S_Y] / r0, st[i, _S_X] / r0
     x = w_v * tau
     sa, ca = st[i, _S_SA], st[i, _S_CA]
@@ -118,7 +119,7 @@ def _departure_gap(p, st, i, t):  # type: ignore[no-untyped-def]
 @leaf_kernel
 def _zero_length_departure(p, st, i):  # type: ignore[no-untyped-def]
     """The zero-length rule of flight.zero_length_departure: reduced gap at τ = 0 ≤ ZERO_FLIGHT_RTOL × its scale."""
-    r0, w_r, w_v, r_d, g = p[_R0], p[_WR], p[_WV], p[_RD], p[_G]
+    r0, w_r, w_v, r_d, g = p[_R0], p[_WR] + st[i, _S_DW], p[_WV], p[_RD], p[_G]
     if st[i, _S_ND] == 0.0:
         scale = 2.0 * r0 * (r_d * w_v**3 + (g + r_d * w_v * w_v) * w_r)
     else:

@@ -165,6 +165,21 @@ def test_the_multi_rod_simulation_says_where_its_carriage_slips(config: MillConf
     assert 0.0 < leads[2] < leads[1] < leads[0] < 360.0
 
 
+def test_the_multi_rod_simulation_with_the_slip_ride(config: MillConfig) -> None:
+    """Level (c) run again with the held rods' slip ride: at μ = 0.3 most departures follow a slide, and the
+    rods that slide back down the wall deliver a fraction of the carried rods' power (200/800 rpm)."""
+    names = ("sim_power_w", "slip_sim_power_w", "slip_sim_impact_rate_hz", "slip_sim_slid_fraction",
+             "slip_sim_slide_time_s")  # fmt: skip
+    values = metrics(corrected(config), 200.0, 800.0, *names, revolutions=2.0)
+    assert 0.3 < values["slip_sim_slid_fraction"] <= 1.0
+    assert 0.0 < values["slip_sim_slide_time_s"] < 2.0 * 60.0 / 200.0
+    assert 0.0 < values["slip_sim_power_w"] < 0.5 * values["sim_power_w"]
+    carried = metrics(corrected(config), 200.0, 800.0, "sim_power_w", revolutions=2.0)
+    assert carried["sim_power_w"] == values["sim_power_w"]  # the carried run is the same run either way
+    counted = values["slip_sim_impact_rate_hz"] * 2.0 * 60.0 / 200.0  # impacts over the two revolutions
+    assert counted >= 1.0 and counted == pytest.approx(round(counted))
+
+
 def test_structural_constraints_name_value_and_bound_per_point(config: MillConfig) -> None:
     jump_rpm = rad_s_to_rpm(st.follower_jump_rad_s(st.StructureParams.from_config(config)))
     speeds = np.array([0.9 * jump_rpm, 1.1 * jump_rpm])

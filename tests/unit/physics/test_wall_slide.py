@@ -1,0 +1,113 @@
+"""The slip ride inside level (c) (physics.wall_slide, kernels.slide): both engines, and against slip_ride.ride."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from millctl.config import ModelVariant
+from millctl.errors import PhysicsInputError
+from millctl.physics.kernels import scene_row
+from millctl.physics.kernels.many_event import many_events
+from millctl.physics.many_agreement import first_difference, many_event_agreement
+from millctl.physics.model import MillModel, Scene
+from millctl.physics.simulate import simulate, simulate_compiled
+from millctl.physics.slip_ride import fly_to_wall, ride
+from millctl.physics.wall_slide import DETACH, REGRIP, SLIDE_STEP, slide_step, slide_step_s, stick_slip_onset
+
+RPM = 2.0 * math.pi / 60.0
+MU = 0.3
+
+
+def _paper_point(model: MillModel, alpha0: float, rods: int = 1) -> Scene:
+    one = dataclasses.replace(model, variant=ModelVariant.CORRECTED, n_rods=rods)
+    return Scene(one, 200.0 * RPM, 800.0 * RPM, -0.5 * math.pi, alpha0)
+
+
+def test_random_scenes_agree_event_for_event_with_slip(set_a: MillModel) -> None:
+    agreement = many_event_agreement(set_a, 16, seed=23, revolutions=1.0, friction=MU)
+    assert agreement.events > 300
+    assert agreement.fraction == 1.0, agreement.differences
+
+
+@pytest.mark.parametrize("k", range(6))
+def test_one_rod_slides_and_leaves_as_the_ode_ride_does(set_a: MillModel, k: int) -> None:
+    # the paper's point 200/800 rpm, one rod from the bottom: solve_ivp (DOP853, rtol 1e-11) against the
+    # event loop's Runge–Kutta slide steps; most cam phases slide back and never leave within the turn
+    scene = _paper_point(set_a, 2.0 * math.pi * (k + 0.5) / 6)
+    reference = ride(scene, "locked", friction=MU)
+    t_end = 2.0 * math.pi / scene.omega_r_rad_s
+    run = simulate(scene, t_end, friction=MU)
+    if not reference.detached:
+        assert run.detachments.size == 0
+        return
+    first = run.detachments[0]
+    assert first["time_s"] == pytest.approx(reference.time_s, abs=1e-7)
+    assert first["theta_rad"] == pytest.approx(reference.theta_rad, abs=1e-6)
+    assert first["slid_s"] == pytest.approx(reference.slip_time_s, abs=1e-7)
+    assert first["slid_s"] > 0.0
+
+
+def test_without_friction_the_rods_are_carried(set_a: MillModel) -> None:
+    scene = _paper_point(set_a, 1.0, rods=6)
+    t_end = 2.0 * math.pi / scene.omega_r_rad_s
+    carried = simulate(scene, t_end)
+    assert np.all(carried.detachments["slid_s"] == 0.0)
+    with_slip = simulate(scene, t_end, friction=MU)
+    assert np.any(with_slip.detachments["slid_s"] > 0.0)
+    compiled, _ = simulate_compiled(scene, t_end, friction=MU)
+    assert first_difference(with_slip, compiled) is None
+    np.testing.assert_allclose(compiled.detachments["slid_s"], with_slip.detachments["slid_s"], atol=1e-12)
+
+
+def test_a_rod_that_slid_leaves_at_its_own_rate(set_a: MillModel) -> None:
+    # the ODE ride's departure flown by slip_ride.fly_to_wall (eq. 10 from φ_d at φ̇_d) against the event loop
+    scene = _paper_point(set_a, 2.0 * math.pi * 3.5 / 6)  # the phase that detaches (above)
+    reference = ride(scene, "locked", friction=MU)
+    assert reference.detached
+    assert reference.theta_rate_rad_s < 0.9 * scene.omega_r_rad_s  # it fell behind the wall
+    landing = fly_to_wall(scene, reference.time_s, reference.theta_rad, reference.theta_rate_rad_s)
+    assert landing is not None
+    t_end = 2.0 * math.pi / scene.omega_r_rad_s
+    for run in (simulate(scene, t_end, friction=MU), simulate_compiled(scene, t_end, friction=MU)[0]):
+        first = run.impacts[0]
+        assert first["partner"] == -1
+        assert first["flight_time_s"] == pytest.approx(landing.flight_time_s, rel=1e-5)
+        assert first["normal_velocity_m_s"] == pytest.approx(landing.normal_velocity_m_s, rel=1e-4)
+
+
+def test_a_slide_step_ends_where_it_detaches_or_regrips(set_a: MillModel) -> None:
+    scene = _paper_point(set_a, 2.0 * math.pi * 3.5 / 6)
+    w_r = scene.omega_r_rad_s
+    onset = stick_slip_onset(scene, scene.theta0_rad, 0.0, 1.0, MU)
+    assert 0.0 < onset < 1.0
+    theta = scene.theta0_rad + w_r * onset
+    s = 1.0 if (scene.model.g_m_s2 > 0.0 and math.cos(theta) > 0.0) else -1.0
+    t, phi, rate, ends, steps = onset, theta, w_r, SLIDE_STEP, 0
+    h = slide_step_s(scene)
+    while ends == SLIDE_STEP and steps < 10_000:
+        step = slide_step(scene, t, phi, rate, s, MU, h)
+        t, phi, rate, ends, steps = t + step.h_s, step.theta_rad, step.rate_rad_s, step.ends, steps + 1
+        assert 0.0 < step.h_s <= h
+    assert ends in (DETACH, REGRIP)
+    if ends == REGRIP:
+        assert s * (rate - w_r) >= 0.0
+    else:
+        g_eff = scene.model.g_m_s2 - scene.model.eccentricity_m * scene.lift_omega_rad_s**2 * math.sin(
+            scene.lift_alpha0_rad + scene.lift_omega_rad_s * t
+        )
+        assert scene.model.r0_m * rate * rate - g_eff * math.sin(phi) <= 0.0
+
+
+@pytest.mark.parametrize("friction", [-0.1, math.nan])
+def test_a_friction_that_is_not_a_coefficient_is_refused(set_a: MillModel, friction: float) -> None:
+    scene = _paper_point(set_a, 1.0)
+    with pytest.raises(PhysicsInputError, match="friction"):
+        simulate(scene, 0.1, friction=friction)
+    with pytest.raises(PhysicsInputError, match="friction"):
+        simulate_compiled(scene, 0.1, friction=friction)
+    with pytest.raises(ValueError, match="friction"):
+        many_events(scene_row(scene), 0.1, friction=friction)
