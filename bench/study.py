@@ -18,13 +18,7 @@
   measured first (:func:`per_point_s`), then S of each pool, and each pool's study is the smallest
   square grid the rule says pays (~10⁴ points: the piece takes minutes, the longest of the study's);
   ``--quick`` caps it at :data:`QUICK_PARALLEL_POINTS`.
-* **offline**: level (c), the compiled many-event kernel (:func:`~millctl.physics.simulate.simulate_compiled`)
-  on random scenes of the :data:`OFFLINE` range, four revolutions each: events (impacts and detachments) per
-  CPU second of this thread, against the reference engine's on the first scenes (the same run); and the
-  whole runner's level-(c) study for comparison (its metrics' post-processing included).
-* **agreement_c**: the compiled kernel against the reference engine event for event on random scenes
-  (:func:`millctl.physics.many_agreement.many_event_agreement`, both variants), with every scene that
-  differs listed.
+* **offline**, **agreement_c** (and ``_slip``): level (c), in :mod:`bench.level_c`.
 
 ``--quick`` shrinks every grid.
 """
@@ -40,11 +34,10 @@ from typing import Any
 
 import numpy as np
 
+from bench import level_c
 from bench.common import bench_config
+from bench.level_c import OFFLINE, SIM_METRICS
 from millctl.physics import kernels
-from millctl.physics.many_agreement import many_event_agreement
-from millctl.physics.model import MillModel, Scene
-from millctl.physics.simulate import simulate, simulate_compiled
 from millctl.studies import SerialBackend, Study, StudyRunner
 from millctl.studies.backends import Backend, DaskBackend, LocalBackend
 from millctl.studies.engine import evaluate_arrays
@@ -52,9 +45,6 @@ from millctl.studies.metrics import DEFAULT_METRICS, PointSettings
 
 MAP = {"rotary_rpm": (20.0, 300.0), "vibration_rpm": (200.0, 1200.0)}
 """The (ω_r, ω_v) ranges of the map (rpm)."""
-OFFLINE = {"rotary_rpm": (120.0, 200.0), "vibration_rpm": (400.0, 800.0)}
-"""Level (c) is timed away from the micro-hops of a few rpm (thousands of events per revolution)."""
-SIM_METRICS = ["impact_energy_p10_j", "impact_energy_p90_j", "sim_impact_rate_hz"]
 FIXED_CAM_PHASES = 4
 """The level-(b) map of issue 40's target: 4 fixed cam phases a point (the integral to 1 % is timed beside it)."""
 
@@ -291,58 +281,14 @@ def worth_workers_rule(per_point_s: float, startup_s: float, workers: int) -> in
     return int(np.ceil(4.0 * workers * startup_s / per_point_s))
 
 
-def _offline_scenes(count: int, seed: int = 7) -> list[Scene]:
-    model = MillModel.from_config(bench_config())
-    rng = np.random.default_rng(seed)
-    (lo_r, hi_r), (lo_v, hi_v) = OFFLINE["rotary_rpm"], OFFLINE["vibration_rpm"]
-    rpm = 2.0 * np.pi / 60.0
-    return [
-        Scene(model, rng.uniform(lo_r, hi_r) * rpm, rng.uniform(lo_v, hi_v) * rpm, *rng.uniform(0.0, 2.0 * np.pi, 2))
-        for _ in range(count)
-    ]
-
-
-def _events_per_cpu_s(scenes: list[Scene], run: Callable[[Scene, float], Any], revolutions: float) -> tuple[int, float]:
-    events, cpu = 0, 0.0
-    for scene in scenes:
-        t_end = revolutions * 2.0 * np.pi / scene.omega_r_rad_s
-        start = time.thread_time()
-        result = run(scene, t_end)
-        cpu += time.thread_time() - start
-        events += int(result.impacts.size + result.detachments.size)
-    return events, cpu
-
-
-def offline(scenes: int, reference_scenes: int, num: int) -> dict[str, Any]:
-    """Level (c): the compiled kernel's events per CPU second of this thread, the reference's, the runner's."""
-    chosen = _offline_scenes(scenes)
-    simulate_compiled(chosen[0], 1e-3)  # load the compiled code
-    events, cpu = _events_per_cpu_s(chosen, lambda s, t: simulate_compiled(s, t)[0], 4.0)
-    ref_events, ref_cpu = _events_per_cpu_s(chosen[:reference_scenes], simulate, 4.0)
+def runner_c(num: int) -> dict[str, Any]:
+    """The whole runner's level-(c) study, for comparison with the kernel (its metrics' post-processing included)."""
     study = _study(num, SIM_METRICS, ranges=OFFLINE)
     run_cpu, run_wall, result = _cpu_wall(lambda: StudyRunner(study, bench_config(), "bench").run(SerialBackend()))
     run_events = sum(int(r["events"]) for r in result.rows)
     return {
-        "scenes": scenes, "events": events, "cpu_s": cpu, "events_per_cpu_s": events / cpu,
-        "reference_scenes": reference_scenes, "reference_events_per_cpu_s": ref_events / ref_cpu,
-        "speedup": (events / cpu) / (ref_events / ref_cpu),
         "points": num * num, "runner_events": run_events, "runner_cpu_s": run_cpu, "runner_wall_s": run_wall,
         "runner_events_per_cpu_s": run_events / run_cpu,
-    }  # fmt: skip
-
-
-def agreement_c(scenes: int, revolutions: float) -> dict[str, Any]:
-    """The compiled level (c) against the reference, event for event, on random scenes of both variants."""
-    model = MillModel.from_config(bench_config())
-    found = many_event_agreement(model, scenes, seed=2026, revolutions=revolutions)
-    differences = [
-        f"{d.variant} {d.omega_r_rpm:.1f}/{d.omega_v_rpm:.1f} rpm, impact {d.event}: reference {d.reference}; "
-        f"compiled {d.compiled}"
-        for d in found.differences
-    ]
-    return {
-        "scenes": found.scenes, "agreeing": found.agreeing, "fraction": found.fraction, "events": found.events,
-        "revolutions": revolutions, "differences": differences,
     }  # fmt: skip
 
 
@@ -358,10 +304,8 @@ def run(quick: bool, progress: Callable[[str], None] = lambda _: None) -> dict[s
     out["integral_check"] = integral_check(100 if quick else 600)
     progress("study: the map through the runner")
     out["runner"] = runner(30 if quick else 100)
-    progress("study: level (c), the compiled many-event kernel, one core")
-    out["offline"] = offline(20 if quick else 200, 3 if quick else 10, 3)
-    progress("study: level (c), compiled against the reference event for event")
-    out["agreement_c"] = agreement_c(60 if quick else 1000, 0.5)
+    out.update(level_c.run(quick, progress))
+    out["offline"].update(runner_c(3))
     progress("study: parallel efficiency, alternated serial and two workers (local, Dask)")
     out["parallel"] = parallel(1 if quick else 3, max_points=QUICK_PARALLEL_POINTS if quick else None)
     return out
@@ -393,7 +337,7 @@ def report(st: dict[str, Any]) -> list[str]:
         f"| {o['runner_cpu_s']:.3g} s | {o['runner_wall_s']:.3g} s | {o['runner_events_per_cpu_s']:.3g} events/s |",
         "",
         *breakdown_lines(st),
-        *offline_lines(st),
+        *level_c.offline_lines(st),
         "",
         "Parallel efficiency on level-(c) studies sized by the rule below (c measured first on a "
         f"{p.get('probe_points', '—')}-point study, then each pool started and warmed and its start-up S timed, then "
@@ -452,26 +396,6 @@ def breakdown_lines(st: dict[str, Any]) -> list[str]:
     return lines
 
 
-def offline_lines(st: dict[str, Any]) -> list[str]:
-    """Level (c): the compiled kernel's speed and its agreement with the reference."""
-    o = st["offline"]
-    lines = [
-        f"Level (c), the compiled many-event kernel: {o['events_per_cpu_s']:.3g} events per CPU second "
-        f"({o['events']:,} events of {o['scenes']} random scenes of ω_r 120–200 × ω_v 400–800 rpm, 4 revolutions "
-        f"each), {o['speedup']:.0f}× the reference engine's {o['reference_events_per_cpu_s']:.3g} in the same run "
-        f"({o['reference_scenes']} of the scenes).",
-    ]
-    if "agreement_c" in st:
-        a = st["agreement_c"]
-        lines += [
-            "",
-            f"Event for event against the reference: {a['agreeing']} of {a['scenes']} random scenes "
-            f"({a['fraction']:.2%}; {a['events']:,} events, {a['revolutions']} revolution each, both variants).",
-            *[f"- differs: {d}" for d in a["differences"]],
-        ]
-    return lines
-
-
 def rule_text(p: dict[str, Any]) -> str:
     """The printed rule for when a study is too small to gain from workers."""
     c = p["per_point_s"]
@@ -486,18 +410,15 @@ def rule_text(p: dict[str, Any]) -> str:
 
 __all__ = [
     "MAP",
-    "OFFLINE",
-    "agreement_c",
     "arrays",
     "breakdown_lines",
     "integral_check",
-    "offline",
-    "offline_lines",
     "parallel",
     "per_point_s",
     "report",
     "rule_text",
     "run",
     "runner",
+    "runner_c",
     "where_time_goes",
 ]

@@ -85,8 +85,13 @@ def issue40(res: dict[str, Any]) -> list[dict[str, Any]]:
             rows.append(_row(f"parallel efficiency, {label}", st["parallel"][key]["efficiency"], 0.8, "share"))
     if "offline" in st:
         rows.append(_row("level (c) simulation", st["offline"]["events_per_cpu_s"], 1e5, "events/s/core"))
+    if "offline_slip" in st:
+        rows.append(_row("level (c) with slip", st["offline_slip"]["events_per_cpu_s"], 1e5, "events/s/core"))
     if "agreement_c" in st:
         rows.append(_row("level (c) agrees event for event", st["agreement_c"]["fraction"], 0.999, "share of scenes"))
+    if "agreement_c_slip" in st:
+        share = st["agreement_c_slip"]["fraction"]
+        rows.append(_row("level (c) with slip agrees event for event", share, 0.999, "share of scenes"))
     return rows
 
 
