@@ -40,27 +40,34 @@ def _offline_scenes(count: int, seed: int = 7) -> list[Scene]:
     ]
 
 
-def _events_per_cpu_s(scenes: list[Scene], run: Callable[[Scene, float], Any], revolutions: float) -> tuple[int, float]:
-    events, cpu = 0, 0.0
+def _events_per_cpu_s(
+    scenes: list[Scene], run: Callable[[Scene, float], Any], revolutions: float
+) -> tuple[int, float, float]:
+    """(events, CPU s, simulated s) of ``run`` over the scenes."""
+    events, cpu, simulated = 0, 0.0, 0.0
     for scene in scenes:
         t_end = revolutions * 2.0 * np.pi / scene.omega_r_rad_s
         start = time.thread_time()
         result = run(scene, t_end)
         cpu += time.thread_time() - start
         events += int(result.impacts.size + result.detachments.size)
-    return events, cpu
+        simulated += t_end
+    return events, cpu, simulated
 
 
 def offline(scenes: int, reference_scenes: int, friction: float = math.inf) -> dict[str, Any]:
     """The compiled kernel's events per CPU second of this thread, and the reference's on the first scenes."""
     chosen = _offline_scenes(scenes)
     simulate_compiled(chosen[0], 1e-3, friction=friction)  # load the compiled code
-    events, cpu = _events_per_cpu_s(chosen, lambda s, t: simulate_compiled(s, t, friction=friction)[0], 4.0)
-    ref_events, ref_cpu = _events_per_cpu_s(
+    events, cpu, simulated = _events_per_cpu_s(
+        chosen, lambda s, t: simulate_compiled(s, t, friction=friction)[0], 4.0
+    )
+    ref_events, ref_cpu, _ = _events_per_cpu_s(
         chosen[:reference_scenes], lambda s, t: simulate(s, t, friction=friction), 4.0
     )
     return {
         "scenes": scenes, "events": events, "cpu_s": cpu, "events_per_cpu_s": events / cpu,
+        "real_time_factor": simulated / cpu,
         "reference_scenes": reference_scenes, "reference_events_per_cpu_s": ref_events / ref_cpu,
         "speedup": (events / cpu) / (ref_events / ref_cpu), "friction": friction,
     }  # fmt: skip
@@ -122,7 +129,9 @@ def offline_lines(st: dict[str, Any]) -> list[str]:
         lines += [
             "",
             f"With the held rods' slip ride (μ = {s['friction']}): {s['events_per_cpu_s']:.3g} events per CPU second "
-            f"({s['events']:,} events of the same scenes; the slide steps are work, not events), "
+            f"({s['events']:,} events of the same scenes; the slide steps are work, not events: the rods slide back "
+            f"and slosh at the bottom, and a run costs its simulated time, {s.get('real_time_factor', math.nan):.3g}× "
+            f"real time against {o.get('real_time_factor', math.nan):.3g}× carried), "
             f"{s['speedup']:.0f}× the reference engine's {s['reference_events_per_cpu_s']:.3g}.",
         ]
     if "agreement_c" in st:
