@@ -84,9 +84,10 @@ DETACHMENT_DTYPE = np.dtype(
 SETTLE_SPEED_FACTOR = 0.01
 MAX_BOUNCES = 20
 MIN_HOP_RTOL = 1e-6
-"""A wall landing after a flight shorter than this × the contact scan's step (~1e-9 s) ends a Zeno chain: the
-rod lands where N is about to dip again below zero, hop after ever shorter hop (each ~20× shorter, down to
-1e-12 s, where rounding alone decided which engine's chain had one hop more); it rides through the dip."""
+"""A wall landing after a hop off the wall shorter than this × the contact scan's step (~1e-9 s) ends a Zeno
+chain: the rod lands where N is about to dip again below zero, hop after ever shorter hop (each ~20× shorter,
+down to 1e-12 s, where rounding alone decided which engine's chain had one hop more); it rides through the
+dip. A short flight that began at a rod–rod bounce is an impact like any other."""
 RELEASE_GAP_RTOL = 1e-9
 """An excluded pair is released when its separation |d|² − (2 r_r)² exceeds this × r0² (the search's near-zero)."""
 
@@ -309,7 +310,9 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         if stop_after_first:
             return None  # nothing after the first impact is needed: no re-scheduling
     if contact.partner == WALL:
-        hop = contact.flight_time_s < MIN_HOP_RTOL * scan_step_s(scene)  # the end of a Zeno chain of hops
+        flight = run.states[contact.rod]
+        hop = isinstance(flight, FlightState) and flight.from_wall  # a hop off the wall, not a bounce's landing
+        hop = hop and contact.flight_time_s < MIN_HOP_RTOL * scan_step_s(scene)  # the end of a Zeno chain
         _repin(run, contact.rod, contact.time_s, rearm=zero_length or hop)
     else:
         run.bounces[contact.rod] = run.bounces.get(contact.rod, 0) + 1

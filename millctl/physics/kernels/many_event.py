@@ -342,7 +342,8 @@ def _run(p, t_end, max_events, threshold_j, tol, mu, impacts, detachments):  # t
                 vn = row[_O_VN]
                 n_imp += 1
             if partner == WALL:
-                hop = tau < MIN_HOP_RTOL * _scan_step_s(p)  # simulate.MIN_HOP_RTOL: the end of a Zeno chain
+                # simulate.MIN_HOP_RTOL: a hop off the wall (not a bounce's landing) this short ends a Zeno chain
+                hop = book[rod, _B_FROM_WALL] != 0.0 and tau < MIN_HOP_RTOL * _scan_step_s(p)
                 _repin(p, st, tr, book, excluded, rod, t_hit, t_end, zero_length or hop, False, slip)
             else:
                 book[rod, _B_BOUNCES] += 1.0

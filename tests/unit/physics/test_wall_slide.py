@@ -8,13 +8,15 @@ import math
 import numpy as np
 import pytest
 
+import millctl.physics.simulate as simulate_module
 from millctl.config import ModelVariant
 from millctl.errors import PhysicsInputError
+from millctl.physics.events import scan_step_s
 from millctl.physics.kernels import scene_row
 from millctl.physics.kernels.many_event import many_events
 from millctl.physics.many_agreement import first_difference, many_event_agreement
 from millctl.physics.model import MillModel, Scene
-from millctl.physics.simulate import simulate, simulate_compiled
+from millctl.physics.simulate import MIN_HOP_RTOL, SimulationResult, simulate, simulate_compiled
 from millctl.physics.slip_ride import fly_to_wall, ride
 from millctl.physics.wall_slide import DETACH, REGRIP, SLIDE_STEP, slide_step, slide_step_s, stick_slip_onset
 
@@ -31,6 +33,50 @@ def test_random_scenes_agree_event_for_event_with_slip(set_a: MillModel) -> None
     agreement = many_event_agreement(set_a, 16, seed=23, revolutions=1.0, friction=MU)
     assert agreement.events > 300
     assert agreement.fraction == 1.0, agreement.differences
+
+
+# (ω_r rpm, ω_v rpm, θ0, α0, r_d), corrected: a rod that lands where N is about to dip again hops on, each hop
+# ~20× shorter, down to flights of 2e-13 s whose last hop only rounding decided (issue 40)
+ZENO_SCENE = (177.70978716400575, 484.53561821061567, -2.0946428814881797, 2.7228462844645334, 0.0018871063886110732)
+# a slide begun where a rod carried through a dip had N = ±1e-14 m/s²: rounding chose slide or departure
+NEAR_ZERO_SCENE = (50.17285884675245, 1046.5345772394107, -1.419312130671731, 2.596969695242666, 0.0018009628546274863)
+
+
+def _corrected_scene(model: MillModel, scene: tuple[float, ...]) -> Scene:
+    w_r, w_v, theta0, alpha0, r_d = scene
+    return Scene(dataclasses.replace(model, variant=ModelVariant.CORRECTED, eccentricity_m=r_d), w_r * RPM, w_v * RPM,
+                 theta0, alpha0)  # fmt: skip
+
+
+@pytest.mark.parametrize("friction", [math.inf, MU])
+def test_a_zeno_chain_of_wall_hops_ends_at_the_minimum_hop(
+    set_a: MillModel, friction: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    run = _corrected_scene(set_a, ZENO_SCENE)
+    t_end = 2.0 * math.pi / run.omega_r_rad_s
+
+    def wall_flights(result: SimulationResult) -> np.ndarray:
+        return np.asarray(result.impacts["flight_time_s"][result.impacts["partner"] == -1])
+
+    with monkeypatch.context() as patch:
+        patch.setattr(simulate_module, "MIN_HOP_RTOL", 0.0)
+        unended = wall_flights(simulate(run, t_end, friction=friction))
+    assert unended.min() < 1e-12  # the chain runs down to rounding without the rule
+    reference = simulate(run, t_end, friction=friction)
+    compiled, _ = simulate_compiled(run, t_end, friction=friction)
+    assert first_difference(reference, compiled) is None
+    hop = MIN_HOP_RTOL * scan_step_s(run)
+    for result in (reference, compiled):  # one hop below the minimum ends each chain: none ~20× shorter still
+        assert np.count_nonzero(wall_flights(result) < hop / 10.0) == 0
+
+
+def test_a_slide_that_begins_at_n_zero_to_rounding_is_a_slide_in_both_engines(set_a: MillModel) -> None:
+    run = _corrected_scene(set_a, NEAR_ZERO_SCENE)
+    t_end = 2.0 * math.pi / run.omega_r_rad_s
+    reference = simulate(run, t_end, friction=MU)
+    compiled, _ = simulate_compiled(run, t_end, friction=MU)
+    assert first_difference(reference, compiled) is None
+    np.testing.assert_allclose(compiled.detachments["slid_s"], reference.detachments["slid_s"], atol=1e-9)
 
 
 @pytest.mark.parametrize("k", range(6))
