@@ -93,6 +93,24 @@ RELEASE_GAP_RTOL = 1e-9
 
 
 @dataclass
+class _Ride:
+    """A held rod's slip ride (the kernel's ROD_BOOK columns ends … changes)."""
+
+    ends: int = DETACH
+    """What its next held event is: :data:`~.wall_slide.SLIDE_STEP`, REGRIP or DETACH."""
+    direction: float = 0.0
+    """The slide's s (0: carried)."""
+    theta_rad: float = math.nan
+    """φ at the next held event."""
+    rate_rad_s: float = math.nan
+    """φ̇ at the next held event."""
+    slid_s: float = 0.0
+    """Time slid since it was put on the wall."""
+    changes: int = 0
+    """Stick ↔ slide changes since."""
+
+
+@dataclass
 class _Run:
     scene: Scene
     t_end_s: float
@@ -107,9 +125,8 @@ class _Run:
     slide_step_s: float = 0.0
     friction: float = math.inf
     """μ of the slip ride (:mod:`.wall_slide`); inf: the paper's carriage, no slip."""
-    ride: dict[int, list[float]] = field(default_factory=dict)
-    """A held rod's slip ride: [next event (:data:`~.wall_slide.SLIDE_STEP`, REGRIP, DETACH), direction s
-    (0 carried), φ and φ̇ at that event, time slid, stick ↔ slide changes] (the kernel's ROD_BOOK columns)."""
+    ride: dict[int, _Ride] = field(default_factory=dict)
+    """A held rod's slip ride, from when it was put on the wall to its departure."""
     impacts: list[tuple[float, ...]] = field(default_factory=list)
     detachments: list[tuple[float, ...]] = field(default_factory=list)
 
@@ -191,15 +208,16 @@ def _schedule(run: _Run, rod: int, t_s: float, rearm: bool = False, settled: boo
         run.unsupported.add(rod)
     else:
         run.unsupported.discard(rod)
-    ride = run.ride.setdefault(rod, [DETACH, 0.0, math.nan, math.nan, 0.0, 0.0])
-    ride[0], ride[1] = DETACH, 0.0
+    ride = run.ride.setdefault(rod, _Ride())
+    ride.ends, ride.direction = DETACH, 0.0
     carried = not (det.detached and det.at_start) and math.isfinite(det.held_from_s)
-    if math.isfinite(run.friction) and carried and ride[5] < MAX_CHANGES:
+    if math.isfinite(run.friction) and carried and ride.changes < MAX_CHANGES:
         start, stop = det.held_from_s, min(run.next_detach[rod], run.t_end_s)
         onset = stick_slip_onset(run.scene, theta_at_zero, start, stop, run.friction) if start <= stop else math.inf
         if onset < run.next_detach[rod] and onset <= run.t_end_s:
             theta = s.theta0_rad + s.rate_rad_s(run.scene) * (onset - s.t0_s)
-            ride[:4] = [SLIDE_STEP, slide_direction(run.scene, onset, theta), theta, run.scene.omega_r_rad_s]
+            ride.ends, ride.direction = SLIDE_STEP, slide_direction(run.scene, onset, theta)
+            ride.theta_rad, ride.rate_rad_s = theta, run.scene.omega_r_rad_s
             run.next_detach[rod] = onset
 
 
@@ -210,21 +228,22 @@ def _slide(run: _Run, rod: int, t_s: float) -> None:
     if not h > 0.0:
         run.next_detach[rod] = math.inf
         return
-    step = slide_step(run.scene, t_s, ride[2], ride[3], ride[1], run.friction, h)
+    step = slide_step(run.scene, t_s, ride.theta_rad, ride.rate_rad_s, ride.direction, run.friction, h)
     if step.h_s == 0.0:  # the true N ≤ 0 where the slide would begin: the rod leaves carried, unsupported
-        ride[0], ride[1], run.next_detach[rod] = DETACH, 0.0, t_s
+        ride.ends, ride.direction, run.next_detach[rod] = DETACH, 0.0, t_s
         run.unsupported.add(rod)
         return
-    run.states[rod] = WallState(t_s, ride[2], (step.theta_rad - ride[2]) / step.h_s - w_r)
-    ride[0], ride[2], ride[3], ride[4] = step.ends, step.theta_rad, step.rate_rad_s, ride[4] + step.h_s
+    run.states[rod] = WallState(t_s, ride.theta_rad, (step.theta_rad - ride.theta_rad) / step.h_s - w_r)
+    ride.ends, ride.theta_rad, ride.rate_rad_s = step.ends, step.theta_rad, step.rate_rad_s
+    ride.slid_s += step.h_s
     run.next_detach[rod] = t_s + step.h_s
 
 
 def _regrip(run: _Run, rod: int, t_s: float) -> None:
     """The sliding rod has caught up with the wall at t: carried again from its angle, the stick tried anew."""
     ride = run.ride[rod]
-    run.states[rod] = WallState(t_s, ride[2])
-    ride[5] += 1.0
+    run.states[rod] = WallState(t_s, ride.theta_rad)
+    ride.changes += 1
     _schedule(run, rod, t_s)
 
 
@@ -232,8 +251,11 @@ def _depart(run: _Run, rod: int, t_s: float) -> None:
     scene, wall = run.scene, run.states[rod]
     assert isinstance(wall, WallState)
     ride = run.ride.pop(rod, None)
-    sliding = ride is not None and ride[1] != 0.0
-    flight = depart_sliding(scene, t_s, ride[2], ride[3]) if ride is not None and sliding else depart(scene, wall, t_s)
+    sliding = ride is not None and ride.direction != 0.0
+    if ride is not None and sliding:
+        flight = depart_sliding(scene, t_s, ride.theta_rad, ride.rate_rad_s)
+    else:
+        flight = depart(scene, wall, t_s)
     theta = math.atan2(flight.y0_m, flight.x0_m)
     run.states[rod] = flight
     run.next_detach[rod] = math.inf
@@ -244,7 +266,7 @@ def _depart(run: _Run, rod: int, t_s: float) -> None:
     run.n_d[rod] = 0.0 if exact else scene.model.r0_m * true_normal_force_per_mass(scene, t_s, theta)
     run.unsupported.discard(rod)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * t_s) % (2.0 * math.pi)
-    run.detachments.append((t_s, rod, theta, alpha, 0.0 if ride is None else ride[4]))
+    run.detachments.append((t_s, rod, theta, alpha, 0.0 if ride is None else ride.slid_s))
     # a neighbour it leaves touching (a separation of rounding size) is not a contact: excluded until apart
     for j in range(len(run.states)):
         if j != rod and _overlapping(run, (min(rod, j), max(rod, j)), t_s, RELEASE_GAP_RTOL * scene.model.r0_m**2):
@@ -296,7 +318,7 @@ def _step(run: _Run, t_s: float, stop_after_first: bool) -> float | None:
         if t_det > run.t_end_s:
             return None
         rod = run.next_detach.index(t_det)
-        ends = run.ride[rod][0] if rod in run.ride else DETACH
+        ends = run.ride[rod].ends if rod in run.ride else DETACH
         if ends == SLIDE_STEP:
             _slide(run, rod, t_det)
         elif ends == REGRIP:

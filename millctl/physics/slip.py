@@ -86,6 +86,36 @@ def _combine(a: TrigSum, b: TrigSum, sign_b: float) -> TrigSum:
     )
 
 
+def carriage_margins(scene: Scene, theta0_rad: float, mu: float) -> tuple[TrigSum, TrigSum]:
+    """μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ0 + ω_r t (θ0 at t = 0), trig sums of time.
+
+    N is the true normal force (corrected law) in either variant; the carriage holds while both are ≥ 0.
+    """
+    normal = normal_force_per_mass(scene, theta0_rad, ModelVariant.CORRECTED)
+    scaled = TrigSum(
+        mu * normal.constant, tuple(mu * a for a in normal.amplitudes), normal.frequencies_rad_s, normal.phases_rad
+    )
+    traction = traction_per_mass(scene, theta0_rad)
+    return _combine(scaled, traction, -1.0), _combine(scaled, traction, 1.0)
+
+
+def first_slip_s(margins: tuple[TrigSum, TrigSum], t_start_s: float, t_stop_s: float) -> float:
+    """The first time in [t_start, t_stop] at which a carriage margin falls below zero (t_start: at once; inf: never).
+
+    The second margin is searched only up to the first one's onset: a later zero of it cannot be the first.
+    """
+    onset = math.inf
+    for margin in margins:
+        if margin(t_start_s) <= 0.0:
+            return t_start_s
+        stop = min(t_stop_s, onset)
+        if stop > t_start_s:
+            root = first_falling_zero(margin, t_start_s, stop)
+            if root is not None:
+                onset = min(onset, root)
+    return onset
+
+
 @dataclass(frozen=True)
 class NoSlipCheck:
     """Whether, and where, the carried rod needs more wall friction than μN before it detaches."""
@@ -126,25 +156,12 @@ def no_slip_check(
         detached, arc_end_s = det.detached, (det.time_s if det.detached else det.horizon_s)
     else:
         detached = True
-    normal = normal_force_per_mass(scene, theta0, ModelVariant.CORRECTED)
-    scaled = TrigSum(
-        mu * normal.constant, tuple(mu * a for a in normal.amplitudes), normal.frequencies_rad_s, normal.phases_rad
-    )
-    traction = traction_per_mass(scene, theta0)
-    onset: float | None = None
-    for margin in (_combine(scaled, traction, -1.0), _combine(scaled, traction, 1.0)):
-        if margin(t_start_s) <= 0.0:
-            onset = t_start_s
-            break
-        if arc_end_s > t_start_s:
-            root = first_falling_zero(margin, t_start_s, arc_end_s)
-            if root is not None and (onset is None or root < onset):
-                onset = root
-    if onset is None:
+    onset = first_slip_s(carriage_margins(scene, theta0, mu), t_start_s, arc_end_s)
+    if onset == math.inf:
         return NoSlipCheck(False, math.nan, math.nan, math.nan, arc_end_s, detached, mu)
     theta = math.remainder(theta0 + scene.omega_r_rad_s * onset, 2.0 * math.pi)
     alpha = (scene.alpha0_rad + scene.omega_v_rad_s * onset) % (2.0 * math.pi)
     return NoSlipCheck(True, onset, theta, alpha, arc_end_s, detached, mu)
 
 
-__all__ = ["NoSlipCheck", "no_slip_check", "traction_per_mass", "traction_ratio"]
+__all__ = ["NoSlipCheck", "carriage_margins", "first_slip_s", "no_slip_check", "traction_per_mass", "traction_ratio"]

@@ -8,7 +8,7 @@ per unit mass, in the vial-centred frame (g_eff = g − r_d ω_v² sin α of the
     n = r0 φ̇² − g_eff sin φ,        r0 φ̈ = f − g_eff cos φ,
 
 * stick: φ̇ = ω_r (the paper's carriage), f = g_eff cos φ, valid while |f| ≤ μ n; the first time it is
-  not (:func:`stick_slip_onset`, the certified search of :mod:`millctl.physics.slip`) the rod slides;
+  not (:func:`stick_slip_onset`: :func:`millctl.physics.slip.first_slip_s` of the carriage margins) the rod slides;
 * slide, in direction s = sign(f) at the onset: f = s μ n; stepped by classical Runge–Kutta (order 4) in
   steps of :func:`slide_step_s`; within a step the first of n ≤ 0 (detach) and s(φ̇ − ω_r) ≥ 0 (the
   contact point has caught up with the wall: regrip) is located by bisection of the step length
@@ -32,12 +32,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from millctl.config.models import ModelVariant
-from millctl.physics.detachment import first_falling_zero
 from millctl.physics.events import shortest_time_s
-from millctl.physics.kinematics import TrigSum, normal_force_per_mass
+from millctl.physics.kinematics import g_eff_m_s2
 from millctl.physics.model import Scene
-from millctl.physics.slip import traction_per_mass
+from millctl.physics.slip import carriage_margins, first_slip_s
 
 STEPS_PER_SCALE = 32
 """Slide steps per shortest time scale (the cam's lift period, the revolution, the fall time √(2 r_r/g))."""
@@ -69,11 +67,10 @@ def slide_step_s(scene: Scene) -> float:
 
 def _accel(scene: Scene, t: float, phi: float, rate: float, s: float, mu: float) -> tuple[float, float]:
     """(n, φ̈) of the sliding block: n = r0 φ̇² − g_eff sin φ, r0 φ̈ = s μ n − g_eff cos φ."""
-    m = scene.model
-    w = scene.lift_omega_rad_s
-    g_eff = m.g_m_s2 - m.eccentricity_m * w * w * math.sin(scene.lift_alpha0_rad + w * t)
-    n = m.r0_m * rate * rate - g_eff * math.sin(phi)
-    return n, (s * mu * n - g_eff * math.cos(phi)) / m.r0_m
+    g_eff = g_eff_m_s2(scene, t)
+    r0 = scene.model.r0_m
+    n = r0 * rate * rate - g_eff * math.sin(phi)
+    return n, (s * mu * n - g_eff * math.cos(phi)) / r0
 
 
 def _rk4(scene: Scene, t: float, phi: float, rate: float, s: float, mu: float, h: float) -> tuple[float, float]:
@@ -128,43 +125,14 @@ def slide_step(scene: Scene, t_s: float, theta_rad: float, rate_rad_s: float, s:
     return SlideStep(_ends(scene, t_s + hi, phi, rate, s, mu), hi, phi, rate)
 
 
-def _margins(scene: Scene, theta_at_zero_rad: float, mu: float) -> tuple[TrigSum, TrigSum]:
-    """μN/m − F_t/m and μN/m + F_t/m of a rod carried at θ_z + ω_r t (N the corrected law, slip.no_slip_check)."""
-    normal = normal_force_per_mass(scene, theta_at_zero_rad, ModelVariant.CORRECTED)
-    traction = traction_per_mass(scene, theta_at_zero_rad)
-    out = []
-    for sign in (-1.0, 1.0):
-        out.append(
-            TrigSum(
-                mu * normal.constant,
-                tuple(mu * a for a in normal.amplitudes) + tuple(sign * a for a in traction.amplitudes),
-                normal.frequencies_rad_s + traction.frequencies_rad_s,
-                normal.phases_rad + traction.phases_rad,
-            )
-        )
-    return out[0], out[1]
-
-
 def stick_slip_onset(scene: Scene, theta_at_zero_rad: float, t_start_s: float, t_stop_s: float, mu: float) -> float:
     """First time in [t_start, t_stop] at which the carried rod needs |F_t| > μN (t_start: at once; inf: never)."""
-    onset = math.inf
-    for margin in _margins(scene, theta_at_zero_rad, mu):
-        if margin(t_start_s) <= 0.0:
-            return t_start_s
-        stop = min(t_stop_s, onset)
-        if stop > t_start_s:
-            root = first_falling_zero(margin, t_start_s, stop)
-            if root is not None:
-                onset = min(onset, root)
-    return onset
+    return first_slip_s(carriage_margins(scene, theta_at_zero_rad, mu), t_start_s, t_stop_s)
 
 
 def slide_direction(scene: Scene, t_s: float, theta_rad: float) -> float:
     """The sign s of the traction the carriage needs at (t, θ): +1 along the wall's motion, −1 against it."""
-    m = scene.model
-    w = scene.lift_omega_rad_s
-    g_eff = m.g_m_s2 - m.eccentricity_m * w * w * math.sin(scene.lift_alpha0_rad + w * t_s)
-    return 1.0 if g_eff * math.cos(theta_rad) > 0.0 else -1.0
+    return 1.0 if g_eff_m_s2(scene, t_s) * math.cos(theta_rad) > 0.0 else -1.0
 
 
 __all__ = [

@@ -16,6 +16,7 @@ from numba import njit
 from millctl.physics.kernels.layout import (
     _G,
     _N,
+    _NEAR_ZERO,
     _R0,
     _RD,
     _RR,
@@ -32,7 +33,6 @@ from millctl.physics.kernels.many_layout import _B_FROM_WALL, SCAN_SAMPLES
 from millctl.physics.kernels.many_roots import _gap_tau, _resolve
 from millctl.physics.kernels.motion import _flying_rel, _rel, _zero_length_departure
 
-_NEAR_ZERO = 1e-9
 
 @njit(cache=True)
 def _shortest_time_s(p):  # type: ignore[no-untyped-def]
@@ -192,8 +192,6 @@ def _earliest(p, st, book, excluded, t_start, t_end, tol, w):  # type: ignore[no
     return math.inf, -1, -1, 0.0
 
 
-
-
 @njit(cache=True)
 def _work(n):  # type: ignore[no-untyped-def]
     """Work arrays of the contact search for n rods: pair ids, reduced flags, chunk samples, positions, phasors."""
@@ -209,7 +207,6 @@ def _work(n):  # type: ignore[no-untyped-def]
         np.empty(SCAN_SAMPLES + 1),
         np.empty((n + 1, 4)),
     )
-
 
 
 __all__: list[str] = []

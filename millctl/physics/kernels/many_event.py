@@ -39,6 +39,7 @@ from millctl.physics.kernels.layout import (
     _G,
     _KM,
     _N,
+    _NEAR_ZERO,
     _O_ENERGY,
     _O_SPEED,
     _O_THC,
@@ -110,8 +111,6 @@ from millctl.physics.kernels.motion import _rel
 from millctl.physics.kernels.slide import _slide_direction, _slide_step, _slip_work, _stick_onset
 from millctl.physics.kernels.trig import _set_term, _trig
 from millctl.physics.wall_slide import DETACH, MAX_CHANGES, REGRIP, SLIDE_STEP
-
-_NEAR_ZERO = 1e-9
 
 
 @njit(cache=True)

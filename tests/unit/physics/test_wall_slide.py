@@ -14,11 +14,21 @@ from millctl.errors import PhysicsInputError
 from millctl.physics.events import scan_step_s
 from millctl.physics.kernels import scene_row
 from millctl.physics.kernels.many_event import many_events
+from millctl.physics.kernels.slide import _slide_step
+from millctl.physics.kinematics import g_eff_m_s2
 from millctl.physics.many_agreement import first_difference, many_event_agreement
 from millctl.physics.model import MillModel, Scene
 from millctl.physics.simulate import MIN_HOP_RTOL, SimulationResult, simulate, simulate_compiled
 from millctl.physics.slip_ride import fly_to_wall, ride
-from millctl.physics.wall_slide import DETACH, REGRIP, SLIDE_STEP, slide_step, slide_step_s, stick_slip_onset
+from millctl.physics.wall_slide import (
+    DETACH,
+    REGRIP,
+    SLIDE_STEP,
+    slide_direction,
+    slide_step,
+    slide_step_s,
+    stick_slip_onset,
+)
 
 RPM = 2.0 * math.pi / 60.0
 MU = 0.3
@@ -38,8 +48,6 @@ def test_random_scenes_agree_event_for_event_with_slip(set_a: MillModel) -> None
 # (ω_r rpm, ω_v rpm, θ0, α0, r_d), corrected: a rod that lands where N is about to dip again hops on, each hop
 # ~20× shorter, down to flights of 2e-13 s whose last hop only rounding decided (issue 40)
 ZENO_SCENE = (177.70978716400575, 484.53561821061567, -2.0946428814881797, 2.7228462844645334, 0.0018871063886110732)
-# a slide begun where a rod carried through a dip had N = ±1e-14 m/s²: rounding chose slide or departure
-NEAR_ZERO_SCENE = (50.17285884675245, 1046.5345772394107, -1.419312130671731, 2.596969695242666, 0.0018009628546274863)
 
 
 def _corrected_scene(model: MillModel, scene: tuple[float, ...]) -> Scene:
@@ -71,12 +79,24 @@ def test_a_zeno_chain_of_wall_hops_ends_at_the_minimum_hop(
 
 
 def test_a_slide_that_begins_at_n_zero_to_rounding_is_a_slide_in_both_engines(set_a: MillModel) -> None:
-    run = _corrected_scene(set_a, NEAR_ZERO_SCENE)
-    t_end = 2.0 * math.pi / run.omega_r_rad_s
-    reference = simulate(run, t_end, friction=MU)
-    compiled, _ = simulate_compiled(run, t_end, friction=MU)
-    assert first_difference(reference, compiled) is None
-    np.testing.assert_allclose(compiled.detachments["slid_s"], reference.detachments["slid_s"], atol=1e-9)
+    # a rod carried through a dip starts where N has just risen through 0: n is ±rounding there, and the sign
+    # alone decided between a slide and an unsupported departure (engines parted at 50.2/1046.5 rpm)
+    scene = _paper_point(set_a, 1.0)
+    w_r, r0, w_lift = scene.omega_r_rad_s, scene.model.r0_m, scene.lift_omega_rad_s
+    t = ((1.5 * math.pi - scene.lift_alpha0_rad) % (2.0 * math.pi)) / w_lift  # the cam's largest g_eff
+    g_eff = g_eff_m_s2(scene, t)
+    assert g_eff > r0 * w_r * w_r
+    theta = math.asin(r0 * w_r * w_r / g_eff)  # n = r0 ω_r² − g_eff sin θ = 0
+    while r0 * w_r * w_r - g_eff * math.sin(theta) >= 0.0:
+        theta = math.nextafter(theta, math.pi / 2)
+    scale = r0 * w_r * w_r + scene.model.g_m_s2 + scene.model.eccentricity_m * scene.lift_omega_rad_s**2
+    assert -1e-15 * scale < r0 * w_r * w_r - g_eff * math.sin(theta) < 0.0
+    h, row = slide_step_s(scene), scene_row(scene)
+    for phi, slides in ((theta, True), (theta + 1e-3, False)):  # zero to rounding; clearly below zero
+        step = slide_step(scene, t, phi, w_r, 1.0, MU, h)
+        compiled = _slide_step(row, t, phi, w_r, 1.0, MU, h)
+        assert (step.h_s > 0.0) is slides
+        assert compiled[0] == step.ends and compiled[1] == pytest.approx(step.h_s, rel=1e-9, abs=1e-15)
 
 
 @pytest.mark.parametrize("k", range(6))
@@ -131,7 +151,7 @@ def test_a_slide_step_ends_where_it_detaches_or_regrips(set_a: MillModel) -> Non
     onset = stick_slip_onset(scene, scene.theta0_rad, 0.0, 1.0, MU)
     assert 0.0 < onset < 1.0
     theta = scene.theta0_rad + w_r * onset
-    s = 1.0 if (scene.model.g_m_s2 > 0.0 and math.cos(theta) > 0.0) else -1.0
+    s = slide_direction(scene, onset, theta)
     t, phi, rate, ends, steps = onset, theta, w_r, SLIDE_STEP, 0
     h = slide_step_s(scene)
     while ends == SLIDE_STEP and steps < 10_000:
@@ -142,10 +162,7 @@ def test_a_slide_step_ends_where_it_detaches_or_regrips(set_a: MillModel) -> Non
     if ends == REGRIP:
         assert s * (rate - w_r) >= 0.0
     else:
-        g_eff = scene.model.g_m_s2 - scene.model.eccentricity_m * scene.lift_omega_rad_s**2 * math.sin(
-            scene.lift_alpha0_rad + scene.lift_omega_rad_s * t
-        )
-        assert scene.model.r0_m * rate * rate - g_eff * math.sin(phi) <= 0.0
+        assert scene.model.r0_m * rate * rate - g_eff_m_s2(scene, t) * math.sin(phi) <= 0.0
 
 
 @pytest.mark.parametrize("friction", [-0.1, math.nan])
