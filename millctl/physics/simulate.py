@@ -129,6 +129,8 @@ class _Run:
     """A held rod's slip ride, from when it was put on the wall to its departure."""
     impacts: list[tuple[float, ...]] = field(default_factory=list)
     detachments: list[tuple[float, ...]] = field(default_factory=list)
+    slide_s: float = 0.0
+    overlap_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -140,6 +142,15 @@ class SimulationResult:
     detachments: NDArray[np.void]
     """Structured array of :data:`DETACHMENT_DTYPE`."""
     t_end_s: float
+    slide_s: float = 0.0
+    """Rod-seconds the held rods slid (the slip ride), departed or not."""
+    overlap_s: float = 0.0
+    """Of those, the rod-seconds whose slide step began with the rod inside another held rod (beyond rounding).
+
+    Held rods are never tested against each other (docs/model.md, "What level (c) does not model"): carried
+    at one rate they cannot meet, but sliding rods pass through each other to the bottom. A share
+    ``overlap_s / slide_s`` well above 0 says that the run's slip ride describes rods heaped at one place.
+    """
 
 
 def _alpha_rad(scene: Scene, t_s: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -163,8 +174,8 @@ def simulate_compiled(
     from millctl.physics.kernels import scene_row
     from millctl.physics.kernels.many_event import many_events
 
-    rows, detached, _ = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s,
-                                    _check_friction(friction))  # fmt: skip
+    rows, detached, _, totals = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s,
+                                            _check_friction(friction))  # fmt: skip
     impacts = np.zeros(len(rows), dtype=IMPACT_DTYPE)
     columns = ("time_s", "rod", "partner", "x_m", "y_m", "theta_rad", "normal_velocity_m_s",
                "tangential_velocity_m_s", "speed_abs_m_s", "energy_j", "flight_time_s")  # fmt: skip
@@ -175,7 +186,8 @@ def simulate_compiled(
     detachments["time_s"], detachments["rod"], detachments["theta_rad"] = detached[:, 0], detached[:, 1], detached[:, 2]
     detachments["slid_s"] = detached[:, 3]
     detachments["alpha_rad"] = _alpha_rad(scene, detached[:, 0])
-    return SimulationResult(impacts, detachments, t_end_s), int(np.count_nonzero(rows[:, 11]))
+    result = SimulationResult(impacts, detachments, t_end_s, float(totals[0]), float(totals[1]))
+    return result, int(np.count_nonzero(rows[:, 11]))
 
 
 def _repin(run: _Run, rod: int, t_s: float, rearm: bool, settled: bool = False) -> None:
@@ -236,6 +248,11 @@ def _slide(run: _Run, rod: int, t_s: float) -> None:
     run.states[rod] = WallState(t_s, ride.theta_rad, (step.theta_rad - ride.theta_rad) / step.h_s - w_r)
     ride.ends, ride.theta_rad, ride.rate_rad_s = step.ends, step.theta_rad, step.rate_rad_s
     ride.slid_s += step.h_s
+    run.slide_s += step.h_s
+    inside = -RELEASE_GAP_RTOL * run.scene.model.r0_m**2
+    held = (j for j, state in enumerate(run.states) if j != rod and isinstance(state, WallState))
+    if any(_overlapping(run, (rod, j), t_s, inside) for j in held):
+        run.overlap_s += step.h_s
     run.next_detach[rod] = t_s + step.h_s
 
 
@@ -381,7 +398,8 @@ def simulate(
         if t is not None:
             run.excluded = {p for p in run.excluded if _still_touching(run, p, t)}
     return SimulationResult(
-        np.array(run.impacts, dtype=IMPACT_DTYPE), np.array(run.detachments, dtype=DETACHMENT_DTYPE), t_end_s
+        np.array(run.impacts, dtype=IMPACT_DTYPE), np.array(run.detachments, dtype=DETACHMENT_DTYPE), t_end_s,
+        run.slide_s, run.overlap_s,
     )
 
 

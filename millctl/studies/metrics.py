@@ -151,6 +151,9 @@ _LIST = [
            "with the slip ride: share of the departures whose rod slid on the wall before it left"),
     Metric("slip_sim_slide_time_s", "c", "simulated time slid before a departure", "s",
            "with the slip ride: mean time a rod slid on the wall since it was put there, per departure (s)"),
+    Metric("slip_sim_overlap_share", "c", "simulated share of sliding inside another rod", "–",
+           "with the slip ride: share of the slide time a rod spent inside another held rod (held rods are not "
+           "tested against each other; near 1 the slip_sim metrics describe rods heaped at the bottom)"),
     Metric("spin_shear_pa", "c", "spin shear stress, eqs 26–27", "Pa",
            "eqs 26–27 corrected at the wall impacts: min(|F_t|, μN)/(2 L b), mean (Pa)"),
 ]
@@ -283,6 +286,7 @@ def _slip_ride_run(scene: Scene, t_end: float, threshold: float) -> tuple[dict[s
         "slip_sim_power_w": float(np.sum(energies)) / t_end,
         "slip_sim_slid_fraction": float(np.mean(slid > 0.0)) if slid.size else math.nan,
         "slip_sim_slide_time_s": float(np.mean(slid)) if slid.size else math.nan,
+        "slip_sim_overlap_share": result.overlap_s / result.slide_s if result.slide_s > 0.0 else math.nan,
     }, int(result.impacts.size + result.detachments.size)
 
 
@@ -303,6 +307,7 @@ def _level_c(
             "slip_sim_power_w": 0.0,
             "slip_sim_slid_fraction": nan,
             "slip_sim_slide_time_s": nan,
+            "slip_sim_overlap_share": nan,
             "impact_energy_p10_j": nan,
             "impact_energy_p90_j": nan,
             "sim_impact_rate_hz": 0.0,

@@ -100,12 +100,15 @@ from millctl.physics.kernels.many_layout import (
     _I_VT,
     _I_X,
     _I_Y,
+    _T_OVERLAP,
+    _T_SLIDE,
     DETACHMENT,
     IMPACT,
     MAX_BOUNCES,
     MIN_HOP_RTOL,
     ROD_BOOK,
     SETTLE_SPEED_FACTOR,
+    TOTALS,
 )
 from millctl.physics.kernels.motion import _rel
 from millctl.physics.kernels.slide import _slide_direction, _slide_step, _slip_work, _stick_onset
@@ -165,8 +168,11 @@ def _schedule(p, st, tr, book, i, t, t_end, rearm, settled, slip):  # type: igno
 
 
 @njit(cache=True)
-def _slide(p, st, book, i, t, t_end, slip):  # type: ignore[no-untyped-def]
-    """simulate._slide: one slide step of held rod i from t; it moves along the step's chord."""
+def _slide(p, st, book, i, t, t_end, slip, totals):  # type: ignore[no-untyped-def]
+    """simulate._slide: one slide step of held rod i from t; it moves along the step's chord.
+
+    ``totals`` (:data:`TOTALS`) gains the step's length, and again when the rod began it inside another held rod.
+    """
     h = min(slip[4], t_end - t)
     if not h > 0.0:
         book[i, _B_DET] = math.inf
@@ -180,6 +186,12 @@ def _slide(p, st, book, i, t, t_end, slip):  # type: ignore[no-untyped-def]
     book[i, _B_ENDS], book[i, _B_PHI], book[i, _B_RATE] = ends, phi_end, rate_end
     book[i, _B_SLID] += h_s
     book[i, _B_DET] = t + h_s
+    totals[_T_SLIDE] += h_s
+    inside = -_NEAR_ZERO * p[_R0] * p[_R0]
+    for j in range(int(p[_N])):
+        if j != i and st[j, _S_FLY] == 0.0 and _overlapping(p, st, i, j, t, inside):
+            totals[_T_OVERLAP] += h_s
+            break
 
 
 @njit(cache=True)
@@ -282,13 +294,16 @@ def _detach(p, st, tr, book, excluded, i, t, d):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _run(p, t_end, max_events, threshold_j, tol, mu, impacts, detachments):  # type: ignore[no-untyped-def]
-    """The event loop of simulate.simulate into ``impacts`` (:data:`IMPACT`) and ``detachments`` (:data:`DETACHMENT`).
+def _run(p, t_end, max_events, threshold_j, tol, mu, impacts, detachments, totals):  # type: ignore[no-untyped-def]
+    """The event loop of simulate.simulate into its rows and ``totals`` (:data:`TOTALS`, zeroed here).
+
+    ``impacts`` (:data:`IMPACT`) and ``detachments`` (:data:`DETACHMENT`) are filled from row 0.
 
     ``mu``: the slip ride's friction (inf: carried). Returns (impacts written, detachments written, events
     stepped, 1 when a table filled before the end).
     """
     slip = _slip_work(p, mu)
+    totals[:] = 0.0
     n = int(p[_N])
     st = np.zeros((n, _STATE_COLUMNS))
     tr = np.zeros((n, _TRIG_COLUMNS))
@@ -317,7 +332,7 @@ def _run(p, t_end, max_events, threshold_j, tol, mu, impacts, detachments):  # t
                 return n_imp, n_det, steps, 0
             t = t_det
             if book[rod_det, _B_ENDS] == SLIDE_STEP:
-                _slide(p, st, book, rod_det, t_det, t_end, slip)
+                _slide(p, st, book, rod_det, t_det, t_end, slip, totals)
             elif book[rod_det, _B_ENDS] == REGRIP:
                 _regrip(p, st, tr, book, rod_det, t_det, t_end, slip)
             elif n_det == detachments.shape[0]:
@@ -365,10 +380,11 @@ def many_events(
     threshold_j: float = 0.0,
     tol_s: float = 0.0,
     friction: float = math.inf,
-) -> tuple[FloatArray, FloatArray, int]:
+) -> tuple[FloatArray, FloatArray, int, FloatArray]:
     """Every impact and detachment of one scene row (:data:`PARAMS`) from t = 0 to ``t_end_s``, compiled.
 
-    Returns (impact rows :data:`IMPACT`, detachment rows :data:`DETACHMENT`, events stepped). An impact
+    Returns (impact rows :data:`IMPACT`, detachment rows :data:`DETACHMENT`, events stepped, the run's
+    :data:`TOTALS`). An impact
     below ``threshold_j`` (J) is recorded with ``counted`` 0. ``max_events`` bounds the loop's steps as in
     :func:`millctl.physics.simulate.simulate`; ``tol_s`` is the contact root finder's time tolerance;
     ``friction`` the held rods' μ of the slip ride (inf: carried, no slip).
@@ -381,14 +397,14 @@ def many_events(
     if not friction >= 0.0:
         raise ValueError(f"friction μ = {friction} must be ≥ 0 (inf: carried, no slip)")
     capacity = min(max(max_events, 1), 4096)
+    totals = np.zeros(len(TOTALS))
     while True:
         impacts, detachments = np.empty((capacity, len(IMPACT))), np.empty((capacity, len(DETACHMENT)))
         n_imp, n_det, steps, full = _run(p, float(t_end_s), int(max_events), float(threshold_j), float(tol_s),
-                                         float(friction), impacts,
-                                         detachments)  # fmt: skip
+                                         float(friction), impacts, detachments, totals)  # fmt: skip
         if not full:
-            return impacts[:n_imp], detachments[:n_det], int(steps)
+            return impacts[:n_imp], detachments[:n_det], int(steps), totals
         capacity *= 4  # the run is deterministic: start again with room for every event
 
 
-__all__ = ["DETACHMENT", "IMPACT", "many_events"]
+__all__ = ["DETACHMENT", "IMPACT", "TOTALS", "many_events"]

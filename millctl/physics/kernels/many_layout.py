@@ -4,7 +4,8 @@ A rod's motion is a row of the shared state columns (``_S_*`` in :mod:`.layout`:
 pinned angle, flight start and velocity, n_d, cam phasor). What the event loop of level (c) keeps
 beside it, one row a rod, is :data:`ROD_BOOK`; what it writes, one row an event, is :data:`IMPACT`
 and :data:`DETACHMENT` (the columns of :data:`millctl.physics.simulate.IMPACT_DTYPE` and
-``DETACHMENT_DTYPE`` that the kernel fills; the cam phase α is added from the time by the caller).
+``DETACHMENT_DTYPE`` that the kernel fills; the cam phase α is added from the time by the caller), and
+what it sums over the run :data:`TOTALS`.
 """
 
 from __future__ import annotations
@@ -21,6 +22,12 @@ the wall, and its stick ↔ slide changes since."""
 (_B_DET, _B_UNSUP, _B_FROM_WALL, _B_BOUNCES, _B_ENDS, _B_DIR, _B_PHI, _B_RATE, _B_SLID, _B_CHANGES) = range(
     len(ROD_BOOK)
 )
+
+TOTALS = ("slide_s", "overlap_s")
+"""What a run sums, beside its rows (:class:`millctl.physics.simulate.SimulationResult`'s fields of the same
+names): the rod-seconds slid, and of those the slide steps begun inside another held rod."""
+
+_T_SLIDE, _T_OVERLAP = range(len(TOTALS))
 
 IMPACT = (
     "time_s",
@@ -57,4 +64,6 @@ MAX_BOUNCES = 20
 SCAN_SAMPLES = 32
 """Samples a chunk of the bracketing scan (as :mod:`millctl.physics.events`)."""
 
-__all__ = ["DETACHMENT", "IMPACT", "MAX_BOUNCES", "MIN_HOP_RTOL", "ROD_BOOK", "SCAN_SAMPLES", "SETTLE_SPEED_FACTOR"]
+__all__ = [
+    "DETACHMENT", "IMPACT", "MAX_BOUNCES", "MIN_HOP_RTOL", "ROD_BOOK", "SCAN_SAMPLES", "SETTLE_SPEED_FACTOR", "TOTALS"
+]  # fmt: skip

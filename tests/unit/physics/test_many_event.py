@@ -87,7 +87,7 @@ def test_the_impact_threshold_counts_impacts_not_micro_hops(set_a: MillModel) ->
 def test_the_event_tables_grow_past_their_first_size(set_a: MillModel) -> None:
     run = _scene(set_a, 160.0, 600.0, 0.3, 1.1)
     t_end = 600.0 * 2.0 * math.pi / run.omega_r_rad_s
-    impacts, detachments, steps = many_events(scene_row(run), t_end)
+    impacts, detachments, steps, _ = many_events(scene_row(run), t_end)
     assert impacts.shape[0] > 4096  # past the first table size
     assert steps >= impacts.shape[0] + detachments.shape[0]
     assert np.all(np.diff(impacts[:, 0]) >= 0.0)

@@ -129,6 +129,23 @@ def test_without_friction_the_rods_are_carried(set_a: MillModel) -> None:
     np.testing.assert_allclose(compiled.detachments["slid_s"], with_slip.detachments["slid_s"], atol=1e-12)
 
 
+def test_the_time_slid_inside_another_rod_is_summed_alike_in_both_engines(set_a: MillModel) -> None:
+    # held rods are not tested against each other: sliding back they pass through each other to the bottom;
+    # the run says how much of its sliding that is (overlap_s of slide_s)
+    t_end = 2.0 * 2.0 * math.pi / (200.0 * RPM)
+    six = _paper_point(set_a, 1.0, rods=6)
+    reference = simulate(six, t_end, friction=MU)
+    compiled, _ = simulate_compiled(six, t_end, friction=MU)
+    assert reference.slide_s > 0.0 and 0.5 * reference.slide_s < reference.overlap_s <= reference.slide_s
+    assert compiled.slide_s == pytest.approx(reference.slide_s, rel=1e-12)
+    assert compiled.overlap_s == pytest.approx(reference.overlap_s, rel=1e-12)
+    assert np.sum(reference.detachments["slid_s"]) <= reference.slide_s  # rods still sliding at the end count
+    alone = simulate(_paper_point(set_a, 1.0), t_end, friction=MU)
+    assert alone.slide_s > 0.0 and alone.overlap_s == 0.0  # nothing to be inside of
+    carried = simulate_compiled(six, t_end)[0]
+    assert carried.slide_s == 0.0 and carried.overlap_s == 0.0
+
+
 def test_a_rod_that_slid_leaves_at_its_own_rate(set_a: MillModel) -> None:
     # the ODE ride's departure flown by slip_ride.fly_to_wall (eq. 10 from φ_d at φ̇_d) against the event loop
     scene = _paper_point(set_a, 2.0 * math.pi * 3.5 / 6)  # the phase that detaches (above)

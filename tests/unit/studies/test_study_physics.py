@@ -169,9 +169,10 @@ def test_the_multi_rod_simulation_with_the_slip_ride(config: MillConfig) -> None
     """Level (c) run again with the held rods' slip ride: at μ = 0.3 most departures follow a slide, and the
     rods that slide back down the wall deliver a fraction of the carried rods' power (200/800 rpm)."""
     names = ("sim_power_w", "slip_sim_power_w", "slip_sim_impact_rate_hz", "slip_sim_slid_fraction",
-             "slip_sim_slide_time_s")  # fmt: skip
+             "slip_sim_slide_time_s", "slip_sim_overlap_share")  # fmt: skip
     values = metrics(corrected(config), 200.0, 800.0, *names, revolutions=2.0)
     assert 0.3 < values["slip_sim_slid_fraction"] <= 1.0
+    assert 0.5 < values["slip_sim_overlap_share"] <= 1.0  # the six rods slide into one heap (not modelled)
     assert 0.0 < values["slip_sim_slide_time_s"] < 2.0 * 60.0 / 200.0
     assert 0.0 < values["slip_sim_power_w"] < 0.5 * values["sim_power_w"]
     carried = metrics(corrected(config), 200.0, 800.0, "sim_power_w", revolutions=2.0)
