@@ -52,6 +52,7 @@ from millctl.physics.wall_slide import (
     MAX_CHANGES,
     REGRIP,
     SLIDE_STEP,
+    STEPS_PER_SCALE,
     slide_direction,
     slide_step,
     slide_step_s,
@@ -164,6 +165,7 @@ def simulate_compiled(
     tol_s: float = 0.0,
     threshold_j: float = 0.0,
     friction: float = math.inf,
+    slide_steps: int = STEPS_PER_SCALE,
 ) -> tuple[SimulationResult, int]:
     """The same run as :func:`simulate`, compiled (:func:`~millctl.physics.kernels.many_event.many_events`).
 
@@ -175,7 +177,7 @@ def simulate_compiled(
     from millctl.physics.kernels.many_event import many_events
 
     rows, detached, _, totals = many_events(scene_row(scene), t_end_s, max_events, threshold_j, tol_s,
-                                            _check_friction(friction))  # fmt: skip
+                                            _check_friction(friction), slide_steps)  # fmt: skip
     impacts = np.zeros(len(rows), dtype=IMPACT_DTYPE)
     columns = ("time_s", "rod", "partner", "x_m", "y_m", "theta_rad", "normal_velocity_m_s",
                "tangential_velocity_m_s", "speed_abs_m_s", "energy_j", "flight_time_s")  # fmt: skip
@@ -376,18 +378,20 @@ def simulate(
     stop_after_first: bool = False,
     tol_s: float = 0.0,
     friction: float = math.inf,
+    slide_steps: int = STEPS_PER_SCALE,
 ) -> SimulationResult:
     """Run the multi-rod event simulation from t = 0 (all rods pinned at eq. 11's angles) to t_end (s).
 
     ``tol_s`` is the contact root finder's time tolerance (0: ≈ 4 ulp). ``friction``: μ of the held rods'
     slip ride (:mod:`.wall_slide`; ``scene.model.powder_friction`` is the model's); inf (default) carries
-    them as the paper does. Every slide step counts as an event of ``max_events``.
+    them as the paper does. ``slide_steps``: the slide's Runge–Kutta steps per shortest time scale
+    (:func:`~.wall_slide.slide_step_s`; its error ∝ steps⁻⁴). Every slide step counts as an event of ``max_events``.
     """
     if not (math.isfinite(t_end_s) and t_end_s >= 0.0):
         raise PhysicsInputError(f"t_end_s = {t_end_s} must be a finite time ≥ 0")
     n = scene.model.n_rods
     run = _Run(scene, t_end_s, [WallState(0.0, scene.rod_theta0_rad(i)) for i in range(n)], [math.inf] * n, tol_s)
-    run.friction, run.slide_step_s = _check_friction(friction), slide_step_s(scene)
+    run.friction, run.slide_step_s = _check_friction(friction), slide_step_s(scene, slide_steps)
     for i in range(n):
         _schedule(run, i, 0.0)
     t: float | None = 0.0

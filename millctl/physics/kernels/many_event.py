@@ -113,7 +113,7 @@ from millctl.physics.kernels.many_layout import (
 from millctl.physics.kernels.motion import _rel
 from millctl.physics.kernels.slide import _slide_direction, _slide_step, _slip_work, _stick_onset
 from millctl.physics.kernels.trig import _set_term, _trig
-from millctl.physics.wall_slide import DETACH, MAX_CHANGES, REGRIP, SLIDE_STEP
+from millctl.physics.wall_slide import DETACH, MAX_CHANGES, REGRIP, SLIDE_STEP, STEPS_PER_SCALE, check_slide_steps
 
 
 @njit(cache=True)
@@ -294,15 +294,14 @@ def _detach(p, st, tr, book, excluded, i, t, d):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True)
-def _run(p, t_end, max_events, threshold_j, tol, mu, impacts, detachments, totals):  # type: ignore[no-untyped-def]
+def _run(p, t_end, max_events, threshold_j, tol, mu, slide_steps, impacts, detachments, totals):  # type: ignore[no-untyped-def]
     """The event loop of simulate.simulate into its rows and ``totals`` (:data:`TOTALS`, zeroed here).
 
-    ``impacts`` (:data:`IMPACT`) and ``detachments`` (:data:`DETACHMENT`) are filled from row 0.
-
-    ``mu``: the slip ride's friction (inf: carried). Returns (impacts written, detachments written, events
-    stepped, 1 when a table filled before the end).
+    ``impacts`` (:data:`IMPACT`) and ``detachments`` (:data:`DETACHMENT`) are filled from row 0; ``mu``: the
+    slip ride's friction (inf: carried), ``slide_steps`` its steps a time scale. Returns (impacts written,
+    detachments written, events stepped, 1 when a table filled before the end).
     """
-    slip = _slip_work(p, mu)
+    slip = _slip_work(p, mu, slide_steps)
     totals[:] = 0.0
     n = int(p[_N])
     st = np.zeros((n, _STATE_COLUMNS))
@@ -380,6 +379,7 @@ def many_events(
     threshold_j: float = 0.0,
     tol_s: float = 0.0,
     friction: float = math.inf,
+    slide_steps: int = STEPS_PER_SCALE,
 ) -> tuple[FloatArray, FloatArray, int, FloatArray]:
     """Every impact and detachment of one scene row (:data:`PARAMS`) from t = 0 to ``t_end_s``, compiled.
 
@@ -387,7 +387,8 @@ def many_events(
     :data:`TOTALS`). An impact
     below ``threshold_j`` (J) is recorded with ``counted`` 0. ``max_events`` bounds the loop's steps as in
     :func:`millctl.physics.simulate.simulate`; ``tol_s`` is the contact root finder's time tolerance;
-    ``friction`` the held rods' μ of the slip ride (inf: carried, no slip).
+    ``friction`` the held rods' μ of the slip ride (inf: carried, no slip), ``slide_steps`` its Runge–Kutta
+    steps per shortest time scale (:func:`millctl.physics.wall_slide.slide_step_s`).
     """
     p = np.ascontiguousarray(row, dtype=np.float64)
     if p.shape != (len(PARAMS),):
@@ -396,12 +397,13 @@ def many_events(
         raise ValueError(f"t_end_s = {t_end_s} must be a finite time ≥ 0")
     if not friction >= 0.0:
         raise ValueError(f"friction μ = {friction} must be ≥ 0 (inf: carried, no slip)")
+    per_scale = check_slide_steps(slide_steps)
     capacity = min(max(max_events, 1), 4096)
     totals = np.zeros(len(TOTALS))
     while True:
         impacts, detachments = np.empty((capacity, len(IMPACT))), np.empty((capacity, len(DETACHMENT)))
         n_imp, n_det, steps, full = _run(p, float(t_end_s), int(max_events), float(threshold_j), float(tol_s),
-                                         float(friction), impacts, detachments, totals)  # fmt: skip
+                                         float(friction), per_scale, impacts, detachments, totals)  # fmt: skip
         if not full:
             return impacts[:n_imp], detachments[:n_det], int(steps), totals
         capacity *= 4  # the run is deterministic: start again with room for every event

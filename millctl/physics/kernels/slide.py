@@ -20,19 +20,20 @@ from numba import njit
 from millctl.physics.kernels.layout import _A0, _G, _R0, _RD, _STATE_COLUMNS, _TRIG_COLUMNS, _WR, _WV
 from millctl.physics.kernels.many_contacts import _shortest_time_s
 from millctl.physics.kernels.telemetry import _slip_onset
-from millctl.physics.wall_slide import BISECTIONS, DETACH, N_NEAR_ZERO, REGRIP, SLIDE_STEP, STEPS_PER_SCALE
+from millctl.physics.wall_slide import BISECTIONS, DETACH, N_NEAR_ZERO, REGRIP, SLIDE_STEP
 
 
 @njit(cache=True)
-def _slide_step_s(p):  # type: ignore[no-untyped-def]
-    """wall_slide.slide_step_s: 1/STEPS_PER_SCALE of the shortest time scale (lift period, revolution, fall)."""
-    return _shortest_time_s(p) / STEPS_PER_SCALE
+def _slide_step_s(p, steps_per_scale):  # type: ignore[no-untyped-def]
+    """wall_slide.slide_step_s: 1/steps_per_scale of the shortest time scale (lift period, revolution, fall)."""
+    return _shortest_time_s(p) / steps_per_scale
 
 
 @njit(cache=True)
-def _slip_work(p, mu):  # type: ignore[no-untyped-def]
-    """The ``slip`` tuple of a run at friction μ (inf: no slip)."""
-    return mu, np.zeros((2, _TRIG_COLUMNS)), np.zeros((1, _STATE_COLUMNS)), p.copy(), _slide_step_s(p)
+def _slip_work(p, mu, steps_per_scale):  # type: ignore[no-untyped-def]
+    """The ``slip`` tuple of a run at friction μ (inf: no slip), its slide steps ``steps_per_scale`` a scale."""
+    rows, st1 = np.zeros((2, _TRIG_COLUMNS)), np.zeros((1, _STATE_COLUMNS))
+    return mu, rows, st1, p.copy(), _slide_step_s(p, steps_per_scale)
 
 
 @njit(cache=True)

@@ -321,3 +321,20 @@ def test_write_docs_refuses_the_figures_of_a_loaded_run(
     path.write_text(json.dumps(run | {"loads": {"compiled": {"loadavg": [4.0, 3.0, 1.0], "cpus": 2}}}))
     assert cli.main(["--from-json", str(path), "--write-docs", "--plots", str(tmp_path)]) == 0
     assert docs.read_text().startswith("# Benchmarks")
+
+
+def test_study_section_reports_the_slide_step_against_its_error_and_its_cost() -> None:
+    from bench import study
+
+    results = _study_results()
+    results["slide_precision"] = {
+        "cases": 24, "scenes": 40, "friction": 0.3, "default": 32,
+        "rows": [{"steps": 8, "max_dt_s": 2.1e-7, "max_dtheta_rad": 3.6e-6, "missed": 1, "events_per_cpu_s": 7250.0,
+                  "real_time_factor": 753.0},
+                 {"steps": 32, "max_dt_s": 7.6e-10, "max_dtheta_rad": 1.3e-8, "missed": 0, "events_per_cpu_s": 2110.0,
+                  "real_time_factor": 212.0}],
+    }  # fmt: skip
+    text = "\n".join(study.report(results))
+    assert "the first departure of 24 one-rod scenes that slide and leave (200/800, 250/600" in text
+    assert "| 8 | 2.1e-07 (1 not left) | 3.6e-06 | 7.25e+03 | 753 |" in text
+    assert "| 32 (default) | 7.6e-10 | 1.3e-08 | 2.11e+03 | 212 |" in text
