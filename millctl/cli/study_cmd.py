@@ -251,15 +251,17 @@ def _print_table(result: Any, metrics: tuple[str, ...], top: int, summary: dict[
                            *quantities(front, summary["pareto"])])
     if summary["findings"]:
         found = summary["findings"]
-        names = [k for k in found[0] if k not in ("point", "value", "criterion")]
-        names += list(dict.fromkeys(k for f in found for k in f if k not in names and k not in ("point", "value",
-                                                                                            "criterion")))
+        apart = ("point", "value", "criterion", "caveat")
+        names = [k for k in found[0] if k not in apart]
+        names += list(dict.fromkeys(k for f in found for k in f if k not in names and k not in apart))
         criteria = Column("criterion", tuple(
             "the objective" if f["criterion"] == "objective" else quantity_label(f["criterion"])
             for f in found))
         print_table(out, "findings: the best feasible point of each group, by each criterion",
                           [criteria, *quantities(found, names), column("point", found, "point"),
                            column("value of the criterion", found, "value")])
+        for caveat in dict.fromkeys(f["caveat"] for f in found if f.get("caveat")):
+            out.print(f"caveat: {caveat}", markup=False)
     rate = summary["points_per_s"]
     stderr_console().print(
         f"{summary['points']} points ({summary['computed']} computed, {summary['reused']} from {summary['results']}), "

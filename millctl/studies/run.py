@@ -21,7 +21,7 @@ import numpy as np
 from millctl.config.models import CamShape, MillConfig, ModelVariant
 from millctl.studies.backends import Backend, SerialBackend, batched
 from millctl.studies.engine import ConstraintSpec, ParamValue, PointTask, point_key
-from millctl.studies.metrics import DEFAULT_METRICS, METRICS, PointSettings
+from millctl.studies.metrics import DEFAULT_METRICS, METRICS, PointSettings, needs_slip_run
 from millctl.studies.schema import CATEGORICAL, INTEGER, Optimiser, Parameter, Study, StudyError
 from millctl.studies.store import ResultsStore, fingerprint_of
 
@@ -30,6 +30,10 @@ Progress = Callable[[int, int], None]
 
 PENALTY = 1e30
 """What the optimiser minimises at an infeasible point (scipy needs a finite number)."""
+HEAP_METRIC = "slip_sim_overlap_share"
+HEAP_SHARE = 0.5
+"""A finding of ``slip_sim_*`` metrics carries a caveat where more of the slide time than this was spent inside
+another rod (:func:`heap_caveat`)."""
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,8 @@ def metric_names(study: Study, source: str) -> tuple[str, ...]:
     names = list(study.metrics.names or DEFAULT_METRICS)
     names += [n for n in study.objective.terms if n not in names]
     names += [n for n in study.objective.compare if n not in names]
+    if needs_slip_run(names) and HEAP_METRIC not in names:
+        names.append(HEAP_METRIC)  # it comes with the same run, and says whether the others can be read
     unknown = [n for n in names if n not in METRICS]
     if unknown:
         known = ", ".join(sorted(METRICS))
@@ -228,8 +234,28 @@ def findings(rows: Sequence[dict[str, Any]], study: Study) -> list[dict[str, Any
                 continue
             value, row = max(scored, key=lambda vr: (vr[0], -int(vr[1]["point"])))
             entry |= {"point": row["point"], **{n: row[n] for n in numeric}, "value": value}
+            caveat = heap_caveat(row, terms)
+            if caveat:
+                entry["caveat"] = caveat
             out.append(entry)
     return out
+
+
+def heap_caveat(row: dict[str, Any], terms: Iterable[str]) -> str | None:
+    """Why a criterion of ``slip_sim_*`` metrics cannot be read at this point, or None.
+
+    Level (c) does not test held rods against each other: with slip they slide through each other to the
+    bottom (docs/model.md, "What it does not model"). Above :data:`HEAP_SHARE` of the slide time spent
+    inside another rod the figures are the single rods' slide and fall, not a pile's.
+    """
+    share = row.get(HEAP_METRIC)
+    if not needs_slip_run(terms) or share is None or not math.isfinite(float(share)) or float(share) <= HEAP_SHARE:
+        return None
+    return (
+        f"point {row['point']}: {float(share):.0%} of its slide time a rod was inside another "
+        f"({HEAP_METRIC} > {HEAP_SHARE}): the slip_sim_* figures describe rods heaped through each other, "
+        "not a pile (held rods do not meet in level (c); docs/model.md)"
+    )
 
 
 def pareto_front(rows: Sequence[dict[str, Any]], metrics: Sequence[str]) -> list[dict[str, Any]]:

@@ -14,6 +14,7 @@ from millctl.config import MillConfig
 from millctl.physics import structure as st
 from millctl.studies import SerialBackend, Study, StudyRunner, load_study
 from millctl.studies.metrics import METRICS
+from millctl.studies.run import HEAP_SHARE, heap_caveat
 from millctl.studies.schema import Parameter
 from millctl.units import rad_s_to_rpm
 from tests.conftest import CONFIG_FILE, REPO
@@ -158,3 +159,54 @@ def test_the_corrected_study_is_bounded_by_its_envelope_and_the_structure(config
     by_speed = {(r["rotary_rpm"], r["vibration_rpm"]): r["violations"] for r in result.rows}
     assert "corrected-every-phase" in by_speed[(188.0, 800.0)]
     assert "roller leaves the cam" in by_speed[(40.0, 1100.0)]
+
+
+HEAPED = """
+[study]
+name = "slip ride at the paper's point"
+seed = 7
+variant = "corrected"
+
+[parameters.rotary_rpm]
+values = [200.0]
+
+[parameters.vibration_rpm]
+values = [800.0]
+
+[metrics]
+names = ["slip_sim_power_w"]
+revolutions = 2.0
+
+[objective]
+maximize = "slip_sim_power_w"
+compare = ["milling_power_w"]
+"""
+
+
+def test_a_finding_of_the_slip_ride_says_when_its_rods_heap_through_each_other(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # held rods do not meet in level (c): at 200/800 most of the slide time is spent inside another rod; the
+    # share comes with any slip_sim metric, and the finding of a slip_sim criterion says so (the other not)
+    path = tmp_path / "heaped.toml"
+    path.write_text(HEAPED, encoding="utf-8")
+    code, res = study(capsys, path, "--out", tmp_path / "r.csv", "--workers", "1", "--json")
+    assert code == 0, res.err
+    summary = json.loads(res.out)["result"]
+    assert "slip_sim_overlap_share" in summary["metrics"]
+    assert summary["best"]["slip_sim_overlap_share"] > HEAP_SHARE
+    caveats = {f["criterion"]: f.get("caveat") for f in summary["findings"]}
+    assert caveats["milling_power_w"] is None
+    objective = caveats["objective"]
+    assert "heaped through each other" in objective and "slip_sim_overlap_share > 0.5" in objective
+    code, res = study(capsys, path, "--out", tmp_path / "r.csv", "--workers", "1")
+    assert code == 0 and f"caveat: {objective}" in " ".join(res.out.split())
+
+
+def test_the_heap_caveat_needs_a_slip_sim_criterion_and_a_share_above_its_bound() -> None:
+    row = {"point": 3, "slip_sim_overlap_share": 0.85}
+    assert heap_caveat(row, ["slip_sim_power_w"]) is not None
+    assert heap_caveat(row, ["milling_power_w"]) is None
+    assert heap_caveat(row | {"slip_sim_overlap_share": 0.05}, ["slip_sim_power_w"]) is None
+    assert heap_caveat(row | {"slip_sim_overlap_share": math.nan}, ["slip_sim_power_w"]) is None
+    assert heap_caveat({"point": 3}, ["slip_sim_power_w"]) is None  # a row from before the metric existed
