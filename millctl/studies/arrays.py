@@ -104,17 +104,21 @@ class PointArrays:
 
     def telemetry(self) -> dict[str, FloatArray]:
         """The K samples of every point, one (P, K) array per :data:`~millctl.physics.kernels.TELEMETRY` column."""
+        table = self.telemetry_table()
+        return {name: table[:, :, k] for k, name in enumerate(kernels.TELEMETRY)}
+
+    def telemetry_table(self) -> FloatArray:
+        """The same samples as one (P, K, len(TELEMETRY)) array, the kernel's own (computed once)."""
         if self.cam_phases < 1:
             raise ValueError(f"telemetry needs cam_phases ≥ 1, got {self.cam_phases} (0 integrates: use summary())")
         cached = self._cache.get("telemetry")
         if cached is None:
             start, pinned = self.start_angles()
-            table = kernels.telemetry_batch(
+            cached = self._cache["telemetry"] = kernels.telemetry_batch(
                 self.rows(start), start, pinned, self.cam_phases, FLIGHT_CAP_S, self.model.powder_friction
             )
-            cached = self._cache["telemetry"] = {name: table[:, :, k] for k, name in enumerate(kernels.TELEMETRY)}
-        telemetry: dict[str, FloatArray] = cached
-        return telemetry
+        table: FloatArray = cached
+        return table
 
     def summary(self) -> dict[str, FloatArray]:
         """:class:`~millctl.physics.telemetry.RevolutionSummary`'s fields as arrays (P,), the same formulas.
@@ -149,9 +153,8 @@ class PointArrays:
 
 def _summary(points: PointArrays) -> dict[str, FloatArray]:
     """revolution_summary over arrays: K samples a point, unit weights (:func:`.phase_integral.weighted_summary`)."""
-    t = points.telemetry()
     k = points.cam_phases
-    table = np.stack([t[name].ravel() for name in kernels.TELEMETRY], axis=1)
+    table = points.telemetry_table().reshape(points.size * k, len(kernels.TELEMETRY))
     point = np.repeat(np.arange(points.size, dtype=np.int64), k)
     model, w_r, threshold = points.model, points.omega_r_rad_s, points.impact_threshold_j
     return weighted_summary(model, w_r, threshold, point, np.ones(point.size), table)

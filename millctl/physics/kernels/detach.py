@@ -17,11 +17,19 @@ from millctl.physics.kernels.layout import (
     _F_N,
     _F_NEG_DN,
     _F_NEG_N,
+    _FORM_MARGIN,
+    _FORM_N,
     _MAX_DEPTH,
     _N,
     _RTOL,
     _STATE_COLUMNS,
     _T_COUNT,
+    _T_G,
+    _T_KAPPA,
+    _T_N_FORM,
+    _T_TH0,
+    _T_U,
+    _T_V,
     _TA,
     _TP,
     _TW,
@@ -207,14 +215,67 @@ def _held_until(tr, i, t, edge):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
+def _product_arcs(tr, i):  # type: ignore[no-untyped-def]
+    """Where a product-form row may be ≤ 0: (shift, a1, b1, a2, b2), arcs [a1, b1], [a2, b2] of y = ω_r t + shift.
+
+    A row in product form (N, or a no-slip margin: ``_T_N_FORM``) is f = c − G·S with G = g − κ sin α in
+    [g − |κ|, g + |κ|] at every cam phase and S = u sin θ + v cos θ = R sin y, y = θ + atan2(v, u), R = √(u² + v²).
+    So f ≥ c − (g + |κ|) S where S ≥ 0 and f ≥ c − (g − |κ|) S where S < 0: f > 0 while
+    sin y < c/((g + |κ|) R) and, when g < |κ| (the cam can lift the powder off: G < 0 at some phase),
+    sin y > −c/((|κ| − g) R). The complement, one arc of y (mod 2π) for each bound that is below 1, is
+    returned; an absent arc is (7, 7) (above 2π). For N (u = 1, v = 0) the first arc starts at
+    sin θ = r0 ω_r²/(g + r_d ω_v²), where the studies' level-(b) sample starts (:mod:`millctl.studies.phase_integral`);
+    the slow term's certificate (:func:`_held_edge`) is the weaker bound (c − |κ|)/g there. (7, 7, 7, 7, 7) with
+    shift nan: not a product row, or c ≤ 0, nothing certified.
+    """
+    form = tr[i, _T_N_FORM]
+    c, w = tr[i, 0], tr[i, _TW]
+    if (form != _FORM_N and form != _FORM_MARGIN) or c <= 0.0 or w <= 0.0:
+        return math.nan, 7.0, 7.0, 7.0, 7.0
+    if form == _FORM_N:
+        g, u, v = tr[i, _TA], 1.0, 0.0
+    else:
+        g, u, v = tr[i, _T_G], tr[i, _T_U], tr[i, _T_V]
+    kappa = abs(tr[i, _T_KAPPA])
+    r = math.sqrt(u * u + v * v)
+    q_hi = c / ((g + kappa) * r)
+    q_lo = c / ((kappa - g) * r) if kappa > g else math.inf
+    a1 = b1 = a2 = b2 = 7.0
+    if q_hi < 1.0:
+        a1 = math.asin(q_hi)
+        b1 = math.pi - a1
+    if q_lo < 1.0:
+        a2 = math.pi + math.asin(q_lo)
+        b2 = _TWO_PI - math.asin(q_lo)
+    return tr[i, _T_TH0] + math.atan2(v, u), a1, b1, a2, b2
+
+
+@leaf_kernel
+def _product_until(tr, i, t, arcs):  # type: ignore[no-untyped-def]
+    """A time up to which f > 0 is certified from t on by the product bound (:func:`_product_arcs` ``arcs``), else t."""
+    shift, a1, b1, a2, b2 = arcs
+    if shift != shift:  # nan: no certificate
+        return t
+    if a1 > _TWO_PI and a2 > _TWO_PI:
+        return math.inf
+    w = tr[i, _TW]
+    y = (w * t + shift) % _TWO_PI
+    if a1 <= y <= b1 or a2 <= y <= b2:
+        return t
+    ahead = min((a1 - y) % _TWO_PI if a1 <= _TWO_PI else math.inf, (a2 - y) % _TWO_PI if a2 <= _TWO_PI else math.inf)
+    return t + ahead / w * (1.0 - 1e-9)
+
+
+@leaf_kernel
 def _falling_zero_windowed(p, st, tr, i, sign, t0, t1):  # type: ignore[no-untyped-def]
     """_falling_zero over [t0, t1], one window at a time from where N can first vanish, stopping at the first root."""
     w = _window_s(p)
     edge = _held_edge(tr, i) if sign > 0.0 else -1.0
+    arcs = _product_arcs(tr, i) if sign > 0.0 else (math.nan, 7.0, 7.0, 7.0, 7.0)
     a = t0
     while a < t1:
         if sign > 0.0:
-            a = max(a, _held_until(tr, i, a, edge))
+            a = max(a, _held_until(tr, i, a, edge), _product_until(tr, i, a, arcs))
             if a >= t1:
                 return math.inf
         b = min(a + w, t1)

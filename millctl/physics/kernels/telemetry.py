@@ -17,7 +17,14 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from millctl.physics.kernels.detach import _falling_zero_windowed, _held_edge, _held_until, _revolution_s
+from millctl.physics.kernels.detach import (
+    _falling_zero_windowed,
+    _held_edge,
+    _held_until,
+    _product_arcs,
+    _product_until,
+    _revolution_s,
+)
 from millctl.physics.kernels.events import _event, _scratch
 from millctl.physics.kernels.layout import (
     _A0,
@@ -108,15 +115,16 @@ def _margin_first_zero(p, st, tr, i, t_end):  # type: ignore[no-untyped-def]
 
     With M = Σ|a_k| w_k² ≥ |m''|, m(t + h) ≥ m + m' h − ½ M h² > 0 for h < 2m / (√(m'² + 2Mm) − m'), so
     each step lands short of the first zero (never past it) and near it becomes a Newton step; the arcs
-    that the slow term alone keeps positive are skipped (:func:`.detach._held_until`). A step below the
-    root finder's resolution ends in one Newton step, the zero to rounding (as the windowed search's Brent
-    finds it, ~1e-14 s apart); a ride that grazes zero without crossing goes to the windowed search after
-    :data:`_SAFE_STEPS` steps. About 6 steps a margin on the studies' 100 × 100 map, against ~12 trig sums
-    of the windowed search's cell tests and Brent.
+    that the slow term alone or the product bound keep positive are skipped (:func:`.detach._held_until`,
+    :func:`.detach._product_until`). A step below the root finder's resolution ends in one Newton step, the
+    zero to rounding (as the windowed search's Brent finds it, ~1e-14 s apart); a ride that grazes zero
+    without crossing goes to the windowed search after :data:`_SAFE_STEPS` steps. On the studies' 100 × 100
+    map the two margins take 6 steps together (11 with the slow term's certificate alone), against ~12 trig
+    sums a margin of the windowed search's cell tests and Brent.
     """
     curvature_max, jerk_max = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
-    edge = _held_edge(tr, i)
-    t = max(0.0, _held_until(tr, i, 0.0, edge))
+    edge, arcs = _held_edge(tr, i), _product_arcs(tr, i)
+    t = max(0.0, _held_until(tr, i, 0.0, edge), _product_until(tr, i, 0.0, arcs))
     for _ in range(_SAFE_STEPS):
         if t >= t_end:
             return math.inf
@@ -128,7 +136,7 @@ def _margin_first_zero(p, st, tr, i, t_end):  # type: ignore[no-untyped-def]
             return t + m / -dm
         h = max(h, _local_safe_step(m, dm, d2m, curvature_max, jerk_max, _LOOK_AHEAD * h))
         t += h
-        t = max(t, _held_until(tr, i, t, edge))
+        t = max(t, _held_until(tr, i, t, edge), _product_until(tr, i, t, arcs))
     return _falling_zero_windowed(p, st, tr, i, 1.0, t, t_end) if t < t_end else math.inf
 
 
