@@ -1,7 +1,8 @@
 """The compiled kernels' certified bounds and root starts, each against the functions it is a statement about.
 
 :func:`.contacts._tangent_bound` (a lower bound on a separation over a step), :func:`.telemetry._local_safe_step`
-(a step over which a margin provably stays positive) and :func:`.roots._hermite_start` (the root of the cubic
+(a step over which a margin provably stays positive), :func:`.detach._product_until` (the arcs where a row in
+product form provably stays positive at every cam phase) and :func:`.roots._hermite_start` (the root of the cubic
 through both ends' values and slopes) are otherwise exercised only through the engines' agreement tests.
 """
 
@@ -14,8 +15,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from millctl.physics.kernels.contacts import _tangent_bound
+from millctl.physics.kernels.detach import _product_arcs, _product_until
+from millctl.physics.kernels.layout import _TRIG_COLUMNS
 from millctl.physics.kernels.roots import _hermite_start
-from millctl.physics.kernels.telemetry import _local_safe_step
+from millctl.physics.kernels.telemetry import _local_safe_step, _slip_rows
+from millctl.physics.kernels.trig import _fill_trig_rows, _trig
 
 _GRID = np.linspace(0.0, 1.0, 2001)
 finite = st.floats(-10.0, 10.0, allow_nan=False)
@@ -110,3 +114,64 @@ def test_the_hermite_start_lands_near_the_root_of_a_smooth_function() -> None:
         start = _hermite_start(xa, xb, math.sin(xa), math.cos(xa), math.sin(xb), math.cos(xb))
         assert abs(start - math.pi) <= 0.01 * width**4 + 1e-15
     assert math.isnan(_hermite_start(0.0, 1.0, 1.0, 0.0, 2.0, 0.0))  # no sign change: no root found
+
+
+def _product_rows(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A random scene's N row (either law) and its two no-slip margins: rows in product form, and the scene row."""
+    from millctl.physics.kernels.layout import PARAMS
+
+    p = np.zeros(len(PARAMS))
+    values = {
+        "r0_m": 0.02, "rod_radius_m": 0.004, "eccentricity_m": rng.uniform(0.0005, 0.004), "g_m_s2": 9.81,
+        "omega_r_rad_s": rng.uniform(2.0, 40.0), "omega_v_rad_s": rng.uniform(5.0, 150.0),
+        "theta0_rad": rng.uniform(-math.pi, math.pi), "alpha0_rad": rng.uniform(0.0, 2.0 * math.pi), "n_rods": 1.0,
+        "paper": float(rng.integers(0, 2)), "spring_per_mass_s2": rng.uniform(0.0, 4000.0), "rod_mass_kg": 0.05,
+        "restitution": 0.5, "cam_to_vial_m": 0.05,
+    }  # fmt: skip
+    for name, value in values.items():
+        p[PARAMS.index(name)] = value
+    n_row = np.zeros((1, _TRIG_COLUMNS))
+    _fill_trig_rows(p, 1, n_row)
+    margins = _slip_rows(p, float(p[PARAMS.index("theta0_rad")]), rng.uniform(0.05, 2.0), np.zeros((2, _TRIG_COLUMNS)))
+    return np.vstack([n_row, margins]), p
+
+
+def test_the_product_certificate_holds_at_every_time_it_covers() -> None:
+    rng = np.random.default_rng(40)
+    covered = ends = 0
+    for _ in range(300):
+        tr, p = _product_rows(rng)
+        for i in range(3):
+            arcs = _product_arcs(tr, i)
+            t = rng.uniform(0.0, 2.0)
+            until = _product_until(tr, i, t, arcs)
+            if until <= t:
+                continue
+            covered += 1
+            span = min(until, t + 4.0 * math.pi / tr[i, 8]) - t  # two revolutions at most
+            for tau in t + span * _GRID:
+                assert _trig(tr, i, tau, 0, 1.0) > 0.0, (i, t, until, tau)
+            if until < math.inf:
+                ends += 1
+    assert covered > 300 and ends > 200  # arcs certified, and most of them end
+
+
+def test_the_product_certificate_ends_where_the_worst_cam_phase_reaches_zero() -> None:
+    # at the end of a certified arc c − G·S is zero for the worst G: g + |κ| where S > 0, g − |κ| < 0 where S < 0
+    rng = np.random.default_rng(41)
+    tight = 0
+    for _ in range(200):
+        tr, _ = _product_rows(rng)
+        for i in (0, 1):
+            arcs = _product_arcs(tr, i)
+            until = _product_until(tr, i, 0.0, arcs)
+            if not 0.0 < until < math.inf:
+                continue
+            w, th0 = tr[i, 8], tr[i, 22]
+            u, v, g = (1.0, 0.0, tr[i, 2]) if i == 0 else (tr[i, 26], tr[i, 27], tr[i, 25])
+            theta = w * until + th0
+            s = u * math.sin(theta) + v * math.cos(theta)
+            worst = (g + abs(tr[i, 21])) * s if s > 0.0 else (g - abs(tr[i, 21])) * s
+            assert abs(tr[i, 0] - worst) <= 1e-6 * tr[i, 0], (i, until)
+            tight += 1
+    assert tight > 50
