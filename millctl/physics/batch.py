@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from millctl.errors import PhysicsInputError
 from millctl.physics import kernels
 from millctl.physics.cam import strokes
+from millctl.physics.kernels.records import records_into
 from millctl.physics.model import MillModel, Scene
 
 FloatArray = NDArray[np.float64]
@@ -149,21 +150,16 @@ def first_impacts(
 
 
 def as_records(raw: FloatArray) -> NDArray[np.void]:
-    """Kernel result rows (:data:`~millctl.physics.kernels.OUT`) as a structured array of :data:`BATCH_DTYPE`."""
-    out = np.empty(raw.shape[0], dtype=BATCH_DTYPE)
-    col = {name: raw[:, k] for k, name in enumerate(kernels.OUT)}
-    out["found"] = col["found"] == 1.0
-    for name in BATCH_DTYPE.names or ():
-        if name in ("found", "flight_time_s"):
-            continue
-        values = col[name]
-        if BATCH_DTYPE[name].kind == "i":
-            out[name] = np.where(np.isfinite(values), values, -1).astype(np.int32)
-        elif BATCH_DTYPE[name].kind == "b":
-            out[name] = values == 1.0
-        else:
-            out[name] = values
-    out["flight_time_s"] = col["time_s"] - col["depart_time_s"]
+    """Kernel result rows (:data:`~millctl.physics.kernels.OUT`) as a structured array of :data:`BATCH_DTYPE`.
+
+    Rod indices and counts as int32 (−1 where there is none), flags as bool, ``flight_time_s`` = impact − departure
+    time; one compiled pass (:func:`~millctl.physics.kernels.records.records_into`).
+    """
+    table = np.ascontiguousarray(raw, dtype=np.float64)
+    if table.ndim != 2 or table.shape[1] != len(kernels.OUT):
+        raise ValueError(f"raw must have shape (scenes, {len(kernels.OUT)}) (kernels.OUT columns), got {table.shape}")
+    out = np.empty(table.shape[0], dtype=BATCH_DTYPE)
+    records_into(table, out)
     return out
 
 

@@ -13,7 +13,7 @@ machine (``cache=True``), one module a concept:
   (:func:`~millctl.physics.flight.departure_wall_gap`), the rod–rod separation (eq. 13, 2 r_r);
 * :mod:`.roots` — Brent's bracketed root finder, a line-by-line port of scipy's ``brentq``
   (same tolerances as the reference), so both engines stop on the same test, and Newton's method kept in
-  its bracket for a rod pair's separation, whose slope comes with it;
+  its bracket where the slope comes with the value (N's falling zeros, a rod pair's separation);
 * :mod:`.detach` — the certified first falling zero of N (Taylor bound, critical points,
   bisection), searched one revolution at a time (one cam period with the vial at rest) and only
   when the event loop reaches the end of what has been searched (lazy);

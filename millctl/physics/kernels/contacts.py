@@ -74,7 +74,7 @@ def _resolve(p, st, tr, i, j, a, b, tol, s_a, ds_a):  # type: ignore[no-untyped-
             f_a, da = s_a, ds_a
         else:
             f_a, da, _ = _pair(p, st, i, j, a)
-        return _newton_from(p, st, i, j, a, b, f_a, da, f_b, db, _xtol(a, b, tol), _RTOL)
+        return _newton_from(_F_SIGN_SEP, p, st, tr, i, j, a, b, f_a, da, f_b, db, _xtol(a, b, tol), _RTOL)
     da = _f(_F_DSEP, p, st, tr, i, j, a)
     if j == WALL:
         db = _f(_F_DSEP, p, st, tr, i, j, b)

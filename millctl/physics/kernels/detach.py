@@ -1,8 +1,9 @@
 """Detachment: the certified first falling zero of N(t)/m (eqs 4–7; the reference is :mod:`millctl.physics.detachment`).
 
 A Taylor bound skips the cells where N provably stays positive, critical points split the rest into
-monotone pieces, Brent's method finds the root (:mod:`.roots`); searched one window (the shorter of a
-revolution and a cam period) at a time, from where N can first vanish (:func:`_held_until`).
+monotone pieces, Newton's method kept in its bracket finds the root (N′ comes with N; :mod:`.roots`);
+searched one window (the shorter of a revolution and a cam period) at a time, from where N can first
+vanish (:func:`_held_until`, :func:`_product_until`).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from millctl.physics.kernels.layout import (
     FloatArray,
     leaf_kernel,
 )
-from millctl.physics.kernels.roots import _brentq, _brentq_from, _xtol
+from millctl.physics.kernels.roots import _brentq, _newton_from, _xtol
 from millctl.physics.kernels.trig import _trig, _trig012, _trig_bound, _trig_rows
 
 
@@ -50,7 +51,7 @@ def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-
     fa, d1a, _ = _trig012(tr, i, a, sign)
     fb, d1b, _ = _trig012(tr, i, b, sign)
     if fa > 0.0 and fb < 0.0:  # f' monotone: exactly one falling zero in [a, b], no need for the critical point
-        return _brentq_from(f_code, p, st, tr, i, 0, a, b, fa, fb, _xtol(a, b, 0.0), _RTOL)
+        return _newton_from(f_code, p, st, tr, i, 0, a, b, fa, d1a, fb, d1b, _xtol(a, b, 0.0), _RTOL)
     if fa > 0.0 and fb > 0.0 and d1a < 0.0 < d1b:
         # convex here: f lies above both end tangents; where they cross is a lower bound on min f
         t_x = (fb - fa + d1a * a - d1b * b) / (d1a - d1b)
@@ -59,13 +60,17 @@ def _monotone_pieces_root(p, st, tr, i, sign, a, b):  # type: ignore[no-untyped-
     split = b  # f's critical point when f' changes sign in [a, b]: the two pieces [a, split], [split, b]
     if (d1a < 0.0 < d1b) or (d1a > 0.0 > d1b):
         split = _brentq(df_code, p, st, tr, i, 0, a, b, _xtol(a, b, 0.0), _RTOL)
-    # f at the pieces' ends: fa, fb are _trig012's values there, bit for bit those of _trig (order 0)
-    f_split = fb if split == b else (fa if split == a else _trig(tr, i, split, 0, sign))
-    for s, e, fs, fe in ((a, split, fa, f_split), (split, b, f_split, fb)):
+    # f and f′ at the pieces' ends: fa, fb are _trig012's values there, bit for bit those of _trig (order 0)
+    f_split, d_split = fb, d1b
+    if split == a:
+        f_split, d_split = fa, d1a
+    elif split != b:
+        f_split, d_split = _trig(tr, i, split, 0, sign), 0.0  # f′ = 0 at the critical point, to its root's rounding
+    for s, e, fs, ds, fe, de in ((a, split, fa, d1a, f_split, d_split), (split, b, f_split, d_split, fb, d1b)):
         if s >= e:
             continue
         if fs > 0.0 and fe < 0.0:
-            return _brentq_from(f_code, p, st, tr, i, 0, s, e, fs, fe, _xtol(s, e, 0.0), _RTOL)
+            return _newton_from(f_code, p, st, tr, i, 0, s, e, fs, ds, fe, de, _xtol(s, e, 0.0), _RTOL)
         if fs > 0.0 and fe == 0.0 and _trig(tr, i, e, 1, sign) < 0.0:
             return e
     return math.inf

@@ -1,10 +1,11 @@
 """Bracketed root finders on the kernels' functions: Brent's method, and Newton's where the slope comes free.
 
 * :func:`_brentq_from`: a line-by-line port of scipy's ``brentq`` (Zeros/brentq.c), with the reference
-  engine's tolerances, so that both stop on the same test (N's zeros, the wall gap);
-* :func:`_newton_from`: Newton's method kept inside the bracket, on the same stopping test, for a rod pair's
-  separation, whose derivative comes from the same two positions (:func:`.motion._pair`), started from the
-  cubic through the bracket's end values and slopes (:func:`_hermite_start`).
+  engine's tolerances, so that both stop on the same test (N's critical points, the wall gap);
+* :func:`_newton_from`: Newton's method kept inside the bracket, on the same stopping test, where the slope
+  comes free: N's falling zeros (the same sines and cosines give N′, :func:`.trig._trig012`) and a rod pair's
+  separation (the same two positions, :func:`.motion._pair`), started from the cubic through the bracket's
+  end values and slopes (:func:`_hermite_start`).
 
 The function is named by a code (``_F_*`` in :mod:`.layout`): N, N′, −N, −N′ (detachment) or the separation
 and its derivative (contacts), evaluated by :func:`_f`.
@@ -27,7 +28,7 @@ from millctl.physics.kernels.layout import (
     leaf_kernel,
 )
 from millctl.physics.kernels.motion import _departure_gap, _pair
-from millctl.physics.kernels.trig import _trig
+from millctl.physics.kernels.trig import _trig, _trig012
 
 
 @leaf_kernel
@@ -45,6 +46,19 @@ def _f(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
         return _departure_gap(p, st, i, t)
     s, ds, _ = _pair(p, st, i, j, t)
     return s if code == _F_SIGN_SEP else ds
+
+
+@leaf_kernel
+def _f_slope(code, p, st, tr, i, j, t):  # type: ignore[no-untyped-def]
+    """The function and its slope at t where the slope comes free: ±N (a trig row), a rod pair's separation."""
+    if code == _F_N:
+        f, df, _ = _trig012(tr, i, t, 1.0)
+        return f, df
+    if code == _F_NEG_N:
+        f, df, _ = _trig012(tr, i, t, -1.0)
+        return f, df
+    s, ds, _ = _pair(p, st, i, j, t)
+    return s, ds
 
 
 @leaf_kernel
@@ -129,12 +143,13 @@ def _hermite_start(xa, xb, fa, dfa, fb, dfb):  # type: ignore[no-untyped-def]
 
 
 @leaf_kernel
-def _newton_from(p, st, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ignore[no-untyped-def]
-    """Newton's method on rods i and j's separation inside the bracket [xa, xb], given it and its slope at both ends.
+def _newton_from(code, p, st, tr, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ignore[no-untyped-def]
+    """Newton's method inside the bracket [xa, xb] on a function whose slope comes free, given both at both ends.
 
-    The contract and stopping test of :func:`_brentq_from` (a root within ½(xtol + rtol·|x|)); the separation's
-    slope comes with it from the same two positions (:func:`.motion._pair`), so it needs about half of Brent's
-    evaluations. A slope of nan: unknown. It starts at the root of the cubic
+    ``code``: ±N of trig row i (its slope from the same two sines and cosines, :func:`.trig._trig012`), or
+    the separation of rods i and j (from the same two positions, :func:`.motion._pair`); :func:`_f_slope`.
+    The contract and stopping test of :func:`_brentq_from` (a root within ½(xtol + rtol·|x|)), about half of
+    Brent's evaluations. A slope of nan: unknown. It starts at the root of the cubic
     through both ends' values and slopes (:func:`_hermite_start`), else the tangent at xb, else the secant; a
     step that would leave the bracket, or shrink it by less than half of the step before, bisects instead
     ("rtsafe", Numerical Recipes §9.4).
@@ -156,7 +171,7 @@ def _newton_from(p, st, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ig
             x = 0.5 * (xa + xb)
     step_before = abs(xb - xa)
     step = step_before
-    f, df, _ = _pair(p, st, i, j, x)
+    f, df = _f_slope(code, p, st, tr, i, j, x)
     for _ in range(_MAXITER):
         if f == 0.0:
             return x
@@ -174,5 +189,5 @@ def _newton_from(p, st, i, j, xa, xb, fa, dfa, fb, dfb, xtol, rtol):  # type: ig
             x -= step
         if abs(step) < delta or abs(hi - lo) < delta:
             return x
-        f, df, _ = _pair(p, st, i, j, x)
+        f, df = _f_slope(code, p, st, tr, i, j, x)
     return x

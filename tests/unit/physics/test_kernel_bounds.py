@@ -140,7 +140,7 @@ def test_the_product_certificate_holds_at_every_time_it_covers() -> None:
     rng = np.random.default_rng(40)
     covered = ends = 0
     for _ in range(300):
-        tr, p = _product_rows(rng)
+        tr, _ = _product_rows(rng)
         for i in range(3):
             arcs = _product_arcs(tr, i)
             t = rng.uniform(0.0, 2.0)

@@ -140,3 +140,30 @@ def test_a_loose_tolerance_still_names_the_first_pair(set_a_corrected: MillModel
         event = first_impact(scene, "exact", tol=tol)
         assert event is not None and (event.rod, event.partner) == (2, 1)
         assert abs(event.time_s - exact.time_s) <= 2.0 * tol
+
+
+def test_records_carry_every_kernel_column_with_its_type() -> None:
+    # the compiled record fill against numpy's per-field expression of the same rules, nan rows included
+    from millctl.physics.batch import as_records
+
+    rng = np.random.default_rng(5)
+    raw = rng.normal(size=(257, len(kernels.OUT)))
+    raw[:, kernels.OUT.index("found")] = rng.integers(0, 2, 257)
+    raw[:, kernels.OUT.index("backed")] = rng.integers(0, 2, 257)
+    for name in ("rod", "partner", "zero_length_flights"):
+        raw[:, kernels.OUT.index(name)] = rng.integers(-1, 6, 257)
+    raw[::3] = np.nan
+    rec = as_records(raw)
+    col = {name: raw[:, k] for k, name in enumerate(kernels.OUT)}
+    for name in BATCH_DTYPE.names or ():
+        if name == "flight_time_s":
+            expected = col["time_s"] - col["depart_time_s"]
+        elif BATCH_DTYPE[name].kind == "i":
+            expected = np.where(np.isfinite(col[name]), col[name], -1).astype(np.int32)
+        elif BATCH_DTYPE[name].kind == "b":
+            expected = col[name] == 1.0
+        else:
+            expected = col[name]
+        assert np.array_equal(rec[name], expected, equal_nan=True), name
+    with pytest.raises(ValueError, match=r"kernels\.OUT"):
+        as_records(raw[:, :5])
