@@ -286,12 +286,13 @@ def integrated_summary(
     while ipt.size:
         width = hi - lo
         half = 0.5 * width / _TWO_PI
-        both = half[:, None] * (g.data[ra, :3] + g.data[rb, :3])
+        ends_a, ends_b = g.data[ra], g.data[rb]
+        both = half[:, None] * (ends_a[:, :3] + ends_b[:, :3])
         means = [_by_point(ipt, both[:, c], size) for c in range(3)]
         total = _by_point(ipt, score, size)
         count = np.bincount(ipt, minlength=size)
         over = (total[ipt] > 1.0) & (score > 1.0 / np.maximum(count[ipt], 1))
-        unplaced = (half > 0.25 * rtol) & _kind_changes(g.data[ra], g.data[rb], lift[ipt])
+        unplaced = (half > 0.25 * rtol) & _kind_changes(ends_a, ends_b, lift[ipt])
         refine = (over | unplaced) & (used[ipt] < MAX_CAM_PHASES) & (width > FINEST_PHASE_RAD)
         moving = np.zeros(size, dtype=bool)
         moving[ipt[refine]] = True
@@ -301,12 +302,13 @@ def integrated_summary(
             break
         ipt, lo, hi, ra, rb, score = ipt[stay], lo[stay], hi[stay], ra[stay], rb[stay], score[stay]
         chosen = np.flatnonzero(refine[stay])
+        picked = np.flatnonzero(stay)[chosen]  # the same intervals among this round's
         at, mid = ipt[chosen], 0.5 * (lo[chosen] + hi[chosen])
         table = sample(at, mid)
         tables.append(table)
         new = _controls(w_r[at], threshold_j, table)
         span = ((hi[chosen] - lo[chosen]) / _TWO_PI)[:, None]
-        delta = np.abs(0.25 * span * (2.0 * new[:, :4] - g.data[ra[chosen], :4] - g.data[rb[chosen], :4]))
+        delta = np.abs(0.25 * span * (2.0 * new[:, :4] - ends_a[picked, :4] - ends_b[picked, :4]))
         rm = g.append(new)
         a, b, c = (_ratio(delta[:, k], means[k][at]) for k in range(3))
         power = a + b + c  # the milling power ∝ B·C/A: its relative change
@@ -321,9 +323,12 @@ def integrated_summary(
         done.append((ipt, hi - lo, ra, rb, score))
     point, width, ra, rb, score = (np.concatenate(column) for column in zip(*done, strict=True))
     t = np.concatenate(tables)
+    # each sample once, weighted by the half widths of the intervals it ends (the trapezoid rule's node weights)
     half_width = 0.5 * width
-    weight, rows = np.concatenate([half_width, half_width]), t[np.concatenate([ra, rb])]
-    out = weighted_summary(model, w_r, threshold_j, np.concatenate([point, point]), weight, rows)
+    weight = np.bincount(ra, half_width, minlength=t.shape[0]) + np.bincount(rb, half_width, minlength=t.shape[0])
+    owner = np.empty(t.shape[0], dtype=np.int64)
+    owner[ra], owner[rb] = point, point
+    out = weighted_summary(model, w_r, threshold_j, owner, weight, t)
     out["cam_phases_used"] = used
     out["cam_phase_error"] = rtol * _by_point(point, score, size)
     return out
