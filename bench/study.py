@@ -102,43 +102,47 @@ _SAMPLE_BINS = ((16, 16), (17, 32), (33, 64), (65, 128), (129, 1 << 30))
 
 
 def where_time_goes(num: int, cam_phases: int = 0) -> dict[str, Any]:
-    """One more run of :func:`arrays`' map with the level-(b) kernel's CPU time counted apart.
+    """One more run of :func:`arrays`' map with the compiled level-(b) work counted apart.
 
-    Every call of :func:`millctl.physics.kernels.telemetry_at` (the integral's samples) and
-    :func:`~millctl.physics.kernels.telemetry_batch` (fixed phases) is timed (``time.thread_time``); the
-    rest of the CPU time is the Python and numpy around it. ``samples`` counts the cam-phase samples the
-    kernel computed; ``points_at_samples`` how many points took 16, 17–32, … samples, and
-    ``sample_share_at`` the share of all samples those points took; ``floor_points_per_cpu_s`` the rate if
-    every point had stopped at the rule's first 16 samples at this run's kernel cost a sample.
+    Every call of :func:`millctl.physics.kernels.phase_integral` (the integral: its rule and its samples) and
+    :func:`~millctl.physics.kernels.telemetry_batch` (fixed phases) is timed (``time.thread_time``); the rest
+    of the CPU time is the Python and numpy around it (the summary's weighted sums, the level-(a) metrics).
+    ``kernel_us_per_sample``: the compiled time a sample, the rule's bookkeeping included.
+    ``points_at_samples`` counts the points that took 16, 17–32, … samples,
+    ``sample_share_at`` the share of all samples those points took; ``floor_points_per_cpu_s`` is the rate
+    had every point stopped at the rule's first 16 samples, at this run's cost a sample.
     """
     (lo_r, hi_r), (lo_v, hi_v) = MAP["rotary_rpm"], MAP["vibration_rpm"]
     rotary, vibration = np.meshgrid(np.linspace(lo_r, hi_r, num), np.linspace(lo_v, hi_v, num), indexing="ij")
     points = {"rotary_rpm": rotary.ravel(), "vibration_rpm": vibration.ravel()}
     config, settings = bench_config(), PointSettings(cam_phases=cam_phases)
     evaluate_arrays({k: v[:4] for k, v in points.items()}, config, DEFAULT_METRICS, settings)
-    spent = {"cpu_s": 0.0, "samples": 0}
-    originals = {name: getattr(kernels, name) for name in ("telemetry_at", "telemetry_batch")}
+    spent: dict[str, Any] = {"cpu_s": 0.0, "samples": 0}
+    originals = {name: getattr(kernels, name) for name in ("phase_integral", "telemetry_batch")}
 
-    def timed(original: Any) -> Any:
+    def timed(name: str, original: Any) -> Any:
         def call(*args: Any, **kwargs: Any) -> Any:
             start = time.thread_time()
-            table = original(*args, **kwargs)
+            result = original(*args, **kwargs)
             spent["cpu_s"] += time.thread_time() - start
-            spent["samples"] += int(np.prod(table.shape[:-1]))
-            return table
+            if name == "phase_integral":  # (table, phase, weight, owner, used, error)
+                spent["samples"] += int(result[0].shape[0])
+            else:
+                spent["samples"] += int(np.prod(result.shape[:-1]))
+            return result
 
         return call
 
     for name, original in originals.items():
-        setattr(kernels, name, timed(original))
+        setattr(kernels, name, timed(name, original))
     try:
         cpu, _, out = _cpu_wall(lambda: evaluate_arrays(points, config, DEFAULT_METRICS, settings))
     finally:
         for name, original in originals.items():
             setattr(kernels, name, original)
-    used = np.asarray(out["cam_phases_used"])
     samples = int(spent["samples"])
     per_sample_s = spent["cpu_s"] / max(samples, 1)
+    used = np.asarray(out["cam_phases_used"])
     at, share = {}, {}
     for lo, hi in _SAMPLE_BINS:
         inside = (used >= lo) & (used <= hi)
@@ -375,10 +379,11 @@ def breakdown_lines(st: dict[str, Any]) -> list[str]:
     b = st["arrays_breakdown"]
     settled = ", ".join(f"{k}: {n:,} ({b['sample_share_at'][k]:.0%})" for k, n in b["points_at_samples"].items())
     lines = [
-        f"Where the integrated map's time goes: the level-(b) kernel (`telemetry_at`) takes "
-        f"{b['kernel_share']:.0%} of the CPU time ({b['kernel_cpu_s']:.3g} of {b['cpu_s']:.3g} s; {b['samples']:,} "
-        f"cam-phase samples, {b['samples_per_point']:.3g} a point, at {b['kernel_us_per_sample']:.3g} µs each), the "
-        f"Python and numpy around it the rest. Points by the samples they took (their share of the samples): "
+        f"Where the integrated map's time goes: the compiled integral (`kernels.phase_integral`, the rule and "
+        f"its samples) takes {b['kernel_share']:.0%} of the CPU time ({b['kernel_cpu_s']:.3g} of {b['cpu_s']:.3g} s; "
+        f"{b['samples']:,} cam-phase samples, {b['samples_per_point']:.3g} a point, at {b['kernel_us_per_sample']:.3g} "
+        f"µs each, the rule's bookkeeping included), the numpy summary and the level-(a) metrics the rest. Points by "
+        f"the samples they took (their share of the samples): "
         f"{settled}. Had every point stopped at the rule's first 16 samples, the map would run at "
         f"{b['floor_points_per_cpu_s']:.3g} points per CPU second.",
         "",

@@ -12,7 +12,7 @@ the benchmark compare (:func:`.methods.first_impact`, ``exact`` with and without
 ``legacy-compiled``), the detachment times (:func:`.kernels.detachment_times`), the node's
 revolution summary (:func:`.telemetry.revolution_summary`, which runs the slip kernels), the design
 studies' level-(b) samples (:func:`.kernels.telemetry_batch` at even phases, :func:`.kernels.telemetry_at`
-at the adaptive integral's), and level (c)'s
+at chosen ones) and their adaptive cam-phase integral (:func:`.kernels.phase_integral`), and level (c)'s
 many-event kernel (:func:`.simulate.simulate_compiled`, the studies' multi-rod simulation).
 """
 
@@ -53,6 +53,7 @@ def warm() -> None:
     rows, start, pinned = kernels.scene_row(scene)[None, :], np.array([-0.5 * math.pi]), np.array([False])
     kernels.telemetry_batch(rows, start, pinned, 4, 2.0, model.powder_friction)
     kernels.telemetry_at(rows, start, pinned, np.zeros(2, dtype=np.int64), np.array([0.0, 1.0]), 2.0, 0.3)
+    kernels.phase_integral(rows, start, pinned, np.array([0.08]), 0.1, 1e-9, 0.01, 2.0, model.powder_friction)
     simulate_compiled(scene, 0.5, threshold_j=1e-10)
 
 

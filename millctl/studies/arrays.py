@@ -39,7 +39,6 @@ from millctl.studies.loads import impact_loads, impact_threshold_j, structural_m
 from millctl.studies.phase_integral import (
     FLIGHT_CAP_S,
     integrated_summary,
-    sampler,
     scene_rows,
     start_angles,
     weighted_summary,
@@ -135,9 +134,8 @@ class PointArrays:
                 }
             else:
                 cached = integrated_summary(
-                    self.model, self.omega_r_rad_s, self.omega_v_rad_s, self.impact_threshold_j, self.cam_phase_rtol,
-                    sampler(self.model, self.omega_r_rad_s, self.omega_v_rad_s),
-                )  # fmt: skip
+                    self.model, self.omega_r_rad_s, self.omega_v_rad_s, self.impact_threshold_j, self.cam_phase_rtol
+                )
             self._cache["summary"] = cached
         summary: dict[str, FloatArray] = cached
         return summary

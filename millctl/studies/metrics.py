@@ -37,7 +37,7 @@ from millctl.studies.loads import (
     slip_ride_metrics,
     structural_metrics,
 )
-from millctl.studies.phase_integral import MAX_CAM_PHASES, integrated_summary, sampler
+from millctl.studies.phase_integral import MAX_CAM_PHASES, integrated_summary
 from millctl.studies.schema import PARAMETER_NAMES, Parameter
 from millctl.units import rad_s_to_rpm
 
@@ -220,7 +220,7 @@ def cam_phase_summary(
         s = revolution_summary(model, w_r, w_v, cam_phases=settings.cam_phases, min_impact_energy_j=threshold_j)
         return s, settings.cam_phases, math.nan
     r, v = np.array([abs(w_r)]), np.array([abs(w_v)])
-    out = integrated_summary(model, r, v, threshold_j, settings.cam_phase_rtol, sampler(model, r, v))
+    out = integrated_summary(model, r, v, threshold_j, settings.cam_phase_rtol)
     fields = {name: float(values[0]) for name, values in out.items()}
     summary = RevolutionSummary(
         detached=fields["detached"] == 1.0,

@@ -30,6 +30,8 @@ say the integrand does not yet follow its trapezoid:
 
 Every point is refined from its own samples only, so a point's answer does not depend on the others
 in its batch: one point alone (:func:`millctl.studies.metrics.cam_phase_summary`) gets the same numbers.
+The rule runs compiled, point by point, with the samples (:mod:`millctl.physics.kernels.phase_rule`);
+the summary's weighted sums are numpy, here.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from millctl.config.models import ModelVariant
 from millctl.physics import kernels
 from millctl.physics.cam import strokes
 from millctl.physics.impact import contact_radius_m, effective_modulus_pa
+from millctl.physics.kernels.phase_rule import FINEST_PHASE_RAD, FIRST_PHASES, MAX_CAM_PHASES
 from millctl.physics.model import MillModel, Scene
 from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S
 
@@ -55,12 +58,6 @@ Sampler = Callable[[IntArray, FloatArray], FloatArray]
 
 FLIGHT_CAP_S = 2.0
 """Longest flight a level-(b) sample follows (s), as :mod:`millctl.physics.telemetry`."""
-FIRST_PHASES = 8
-"""K0: the even phases an integral starts from (then every interval is bisected once)."""
-MAX_CAM_PHASES = 256
-"""A point stops refining once it has taken this many samples."""
-FINEST_PHASE_RAD = 2.0 * math.pi / 4096
-"""The narrowest interval the integral bisects (rad of lift phase)."""
 _TWO_PI = 2.0 * math.pi
 _SHEAR_SINES = tuple(math.sin(2.0 * math.pi * (k + 0.5) / 16) for k in range(16))
 _COLUMN = {name: k for k, name in enumerate(kernels.TELEMETRY)}
@@ -208,130 +205,31 @@ def weighted_summary(
         }
 
 
-def _controls(w_r: FloatArray, threshold_j: float, t: FloatArray) -> FloatArray:
-    """What the rule reads of a sample, one row each.
-
-    The four integrands it controls (counted, counted·p, counted·energy, slipping), then the departure
-    time (s; nan without a landing) and the wall landing (0/1).
-    """
-    x = _per_sample(w_r, threshold_j, t)
-    counted, landed = x["counted"], x["landed"]
-    out = np.zeros((t.shape[0], 6))
-    out[:, 0] = counted
-    out[:, 1] = np.where(counted, x["per_rev"], 0.0)
-    out[:, 2] = np.where(counted, t[:, _COLUMN["energy_j"]], 0.0)
-    out[:, 3] = x["slipping"]
-    out[:, 4] = np.where(landed, t[:, _COLUMN["depart_time_s"]], math.nan)
-    out[:, 5] = np.where(landed, t[:, _COLUMN["on_wall"]], math.nan)
-    return out
-
-
-def _kind_changes(a: FloatArray, b: FloatArray, lift_period_s: FloatArray) -> NDArray[np.bool_]:
-    """Intervals whose ends land differently: counted or not, on the wall or a rod, or a lift cycle apart."""
-    with np.errstate(invalid="ignore"):
-        cycle = np.abs(b[:, 4] - a[:, 4]) > 0.5 * lift_period_s  # nan (no landing at an end): not this test
-    partner = (a[:, 5] != b[:, 5]) & (a[:, 0] == 1.0) & (b[:, 0] == 1.0)
-    result: NDArray[np.bool_] = (a[:, 0] != b[:, 0]) | cycle | partner
-    return result
-
-
-def _ratio(delta: FloatArray, scale: FloatArray) -> FloatArray:
-    """|Δ| / scale, 0 where Δ is 0 and ∞ where only the scale is."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        result: FloatArray = np.where(delta == 0.0, 0.0, delta / scale)
-    return result
-
-
-class _Growing:
-    """Rows appended in chunks to a buffer that doubles (the samples' controls, addressed by row number)."""
-
-    def __init__(self, first: FloatArray) -> None:
-        self.rows = first.shape[0]
-        self.data = np.empty((max(2 * self.rows, 1), first.shape[1]))
-        self.data[: self.rows] = first
-
-    def append(self, block: FloatArray) -> IntArray:
-        end = self.rows + block.shape[0]
-        if end > self.data.shape[0]:
-            grown = np.empty((2 * end, self.data.shape[1]))
-            grown[: self.rows] = self.data[: self.rows]
-            self.data = grown
-        self.data[self.rows : end] = block
-        index = np.arange(self.rows, end, dtype=np.int64)
-        self.rows = end
-        return index
-
-
 def integrated_summary(
-    model: MillModel, w_r: FloatArray, w_v: FloatArray, threshold_j: float, rtol: float, sample: Sampler
+    model: MillModel, w_r: FloatArray, w_v: FloatArray, threshold_j: float, rtol: float
 ) -> dict[str, FloatArray]:
     """:func:`weighted_summary` integrated over the lift phase to ``rtol`` (the module docstring's rule).
 
-    Also ``cam_phases_used`` (samples a point took) and ``cam_phase_error`` (its error estimate).
+    Also ``cam_phases_used`` (samples a point took) and ``cam_phase_error`` (its error estimate). The rule
+    runs compiled, point by point (:func:`millctl.physics.kernels.phase_integral`); the summary's sums here.
     """
-    size = w_r.size
-    # the intervals of the points still refining: point, ends (rad), their samples' rows, score
-    ipt = np.repeat(np.arange(size, dtype=np.int64), FIRST_PHASES)
-    lo = np.tile(_TWO_PI * np.arange(FIRST_PHASES) / FIRST_PHASES, size)
-    hi = np.tile(_TWO_PI * np.arange(1, FIRST_PHASES + 1) / FIRST_PHASES, size)
-    ra = np.arange(size * FIRST_PHASES, dtype=np.int64)
-    rb = ra - ra % FIRST_PHASES + (ra + 1) % FIRST_PHASES
-    score = np.full(ra.size, math.inf)  # not yet bisected
-    tables = [sample(ipt, lo)]
-    g = _Growing(_controls(w_r[ipt], threshold_j, tables[0]))
-    used = np.full(size, float(FIRST_PHASES))
+    table, _, weight, owner, used, error = integral_samples(model, w_r, w_v, threshold_j, rtol)
+    out = weighted_summary(model, w_r, threshold_j, owner, weight, table)
+    out["cam_phases_used"], out["cam_phase_error"] = used, error
+    return out
+
+
+def integral_samples(
+    model: MillModel, w_r: FloatArray, w_v: FloatArray, threshold_j: float, rtol: float
+) -> tuple[FloatArray, FloatArray, FloatArray, IntArray, FloatArray, FloatArray]:
+    """The rule's samples of every point: (telemetry rows, lift phases, trapezoid weights, owners, used, error)."""
+    start, pinned = start_angles(model, w_r, w_v)
     with np.errstate(divide="ignore"):
         lift = _TWO_PI / (strokes(model.cam) * w_v)
-    done: list[tuple[IntArray, FloatArray, IntArray, IntArray, FloatArray]] = []
-    while ipt.size:
-        width = hi - lo
-        half = 0.5 * width / _TWO_PI
-        ends_a, ends_b = g.data[ra], g.data[rb]
-        both = half[:, None] * (ends_a[:, :3] + ends_b[:, :3])
-        means = [_by_point(ipt, both[:, c], size) for c in range(3)]
-        total = _by_point(ipt, score, size)
-        count = np.bincount(ipt, minlength=size)
-        over = (total[ipt] > 1.0) & (score > 1.0 / np.maximum(count[ipt], 1))
-        unplaced = (half > 0.25 * rtol) & _kind_changes(ends_a, ends_b, lift[ipt])
-        refine = (over | unplaced) & (used[ipt] < MAX_CAM_PHASES) & (width > FINEST_PHASE_RAD)
-        moving = np.zeros(size, dtype=bool)
-        moving[ipt[refine]] = True
-        stay = moving[ipt]
-        done.append((ipt[~stay], width[~stay], ra[~stay], rb[~stay], score[~stay]))
-        if not refine.any():
-            break
-        ipt, lo, hi, ra, rb, score = ipt[stay], lo[stay], hi[stay], ra[stay], rb[stay], score[stay]
-        chosen = np.flatnonzero(refine[stay])
-        picked = np.flatnonzero(stay)[chosen]  # the same intervals among this round's
-        at, mid = ipt[chosen], 0.5 * (lo[chosen] + hi[chosen])
-        table = sample(at, mid)
-        tables.append(table)
-        new = _controls(w_r[at], threshold_j, table)
-        span = ((hi[chosen] - lo[chosen]) / _TWO_PI)[:, None]
-        delta = np.abs(0.25 * span * (2.0 * new[:, :4] - ends_a[picked, :4] - ends_b[picked, :4]))
-        rm = g.append(new)
-        a, b, c = (_ratio(delta[:, k], means[k][at]) for k in range(3))
-        power = a + b + c  # the milling power ∝ B·C/A: its relative change
-        eps = np.maximum(np.maximum(delta[:, 0], delta[:, 3]), power) / rtol
-        old_hi, old_rb = hi[chosen], rb[chosen]
-        hi[chosen], rb[chosen], score[chosen] = mid, rm, 0.5 * eps  # the left half in place, the right appended
-        ipt, lo, hi = np.concatenate([ipt, at]), np.concatenate([lo, mid]), np.concatenate([hi, old_hi])
-        ra, rb = np.concatenate([ra, rm]), np.concatenate([rb, old_rb])
-        score = np.concatenate([score, 0.5 * eps])
-        used += np.bincount(at, minlength=size)
-    if not done:  # no points
-        done.append((ipt, hi - lo, ra, rb, score))
-    point, width, ra, rb, score = (np.concatenate(column) for column in zip(*done, strict=True))
-    t = np.concatenate(tables)
-    # each sample once, weighted by the half widths of the intervals it ends (the trapezoid rule's node weights)
-    half_width = 0.5 * width
-    weight = np.bincount(ra, half_width, minlength=t.shape[0]) + np.bincount(rb, half_width, minlength=t.shape[0])
-    owner = np.empty(t.shape[0], dtype=np.int64)
-    owner[ra], owner[rb] = point, point
-    out = weighted_summary(model, w_r, threshold_j, owner, weight, t)
-    out["cam_phases_used"] = used
-    out["cam_phase_error"] = rtol * _by_point(point, score, size)
-    return out
+    return kernels.phase_integral(
+        scene_rows(model, w_r, w_v, start), start, pinned, lift, MIN_OMEGA_R_RAD_S, threshold_j, rtol,
+        FLIGHT_CAP_S, model.powder_friction,
+    )  # fmt: skip
 
 
 __all__ = [
@@ -339,6 +237,7 @@ __all__ = [
     "FIRST_PHASES",
     "FLIGHT_CAP_S",
     "MAX_CAM_PHASES",
+    "integral_samples",
     "integrated_summary",
     "mean_shear_pa",
     "sampler",

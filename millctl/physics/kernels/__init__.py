@@ -21,6 +21,7 @@ machine (``cache=True``), one module a concept:
   second-order margin that lets a grazing minimum be skipped only when it provably stays apart);
 * :mod:`.events` — the event loop to the first impact and its energy (eq. 19), the batch entry point;
 * :mod:`.telemetry` — level (b): the node telemetry's cam-phase samples with the no-slip check;
+* :mod:`.phase_rule` — level (b) integrated over the cam phase: the studies' adaptive trapezoid rule;
 * :mod:`.scene_call` — one scene at a time with reused arrays (the public API's ``exact``), and
   :class:`EventCall`: one model's events, the scene as four floats, on arrays made and checked once.
 
@@ -127,6 +128,7 @@ from millctl.physics.kernels.layout import _WR as _WR
 from millctl.physics.kernels.layout import _WV as _WV
 from millctl.physics.kernels.layout import OUT, PARAMS, TELEMETRY, WALL, FloatArray, scene_row, scene_rows
 from millctl.physics.kernels.motion import _rel as _rel
+from millctl.physics.kernels.phase_rule import phase_integral
 from millctl.physics.kernels.scene_call import EventCall, SceneCall
 from millctl.physics.kernels.telemetry import telemetry_at, telemetry_batch, telemetry_samples
 from millctl.physics.kernels.trig import _trig as _trig
@@ -142,6 +144,7 @@ __all__ = [
     "SceneCall",
     "detachment_times",
     "first_impacts",
+    "phase_integral",
     "scene_row",
     "scene_rows",
     "telemetry_at",

@@ -227,8 +227,8 @@ def test_study_section_reports_the_array_path_the_runner_and_the_rule_for_worker
     assert "| 2 local processes | 256 (240) | 7.1 s | 4 s | 1.73× | 87% | 1.5 s | 65% |" in text
     assert "| 2-worker local Dask cluster | 484 (480) | 7 s | 5 s | 1.40× | 70% | 3 s | 44% |" in text
     assert "c measured first on a 64-point study" in text
-    assert "the level-(b) kernel (`telemetry_at`) takes 96% of the CPU time (4.8 of 5 s; 400,000" in text
-    assert "samples, 40 a point, at 12 µs each" in text
+    assert "the compiled integral (`kernels.phase_integral`, the rule and its samples) takes 96% of the CPU" in text
+    assert "(4.8 of 5 s; 400,000 cam-phase samples, 40 a point, at 12 µs each, the rule's bookkeeping included)" in text
     assert "16: 9,000 (36%), ≥ 129: 1,000 (64%)" in text and "at 5.2e+03 points per CPU second" in text
     checked = "against 1,024 fixed cam phases on 600 random points of the map: the milling power within 1% on 90.0%"
     assert checked in text

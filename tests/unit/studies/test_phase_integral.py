@@ -29,7 +29,7 @@ def _fixed(model: MillModel, w_r: np.ndarray, w_v: np.ndarray, k: int) -> dict[s
 
 
 def _integrated(model: MillModel, w_r: np.ndarray, w_v: np.ndarray) -> dict[str, np.ndarray]:
-    return pi.integrated_summary(model, w_r, w_v, impact_threshold_j(model), RTOL, pi.sampler(model, w_r, w_v))
+    return pi.integrated_summary(model, w_r, w_v, impact_threshold_j(model), RTOL)
 
 
 def test_a_window_between_the_first_samples_is_found(config: MillConfig) -> None:
@@ -88,8 +88,7 @@ def test_a_tighter_tolerance_takes_more_samples_and_lands_closer(config: MillCon
     model = MillModel.from_config(config)
     w_r, w_v = _speeds((96.36363636363636, 775.7575757575758), (150.0, 800.0))
     threshold, fine = impact_threshold_j(model), _fixed(model, w_r, w_v, 4096)
-    sample = pi.sampler(model, w_r, w_v)
-    runs = {rtol: pi.integrated_summary(model, w_r, w_v, threshold, rtol, sample) for rtol in (0.05, 0.002)}
+    runs = {rtol: pi.integrated_summary(model, w_r, w_v, threshold, rtol) for rtol in (0.05, 0.002)}
     error = {rtol: np.abs(out["impact_power_w"] / fine["impact_power_w"] - 1.0) for rtol, out in runs.items()}
     for rtol, out in runs.items():
         assert np.all(out["cam_phase_error"] <= rtol) and np.all(error[rtol] <= rtol), (rtol, error[rtol])
@@ -101,3 +100,20 @@ def test_no_points_give_empty_columns(config: MillConfig) -> None:
     none = np.zeros(0)
     out = _integrated(model, none, none)
     assert out["cam_phases_used"].shape == (0,) and out["impact_power_w"].shape == (0,)
+
+
+def test_the_rules_samples_are_a_periodic_trapezoid_of_their_phases(config: MillConfig) -> None:
+    # each point's samples: distinct phases in [0, 2π) whose weights are half the gaps to both neighbours
+    model = MillModel.from_config(config)
+    w_r, w_v = _speeds((201.010101010101, 977.7777777777777), (150.0, 800.0), (280.0, 300.0), (96.4, 775.8))
+    table, phase, weight, owner, used, error = pi.integral_samples(model, w_r, w_v, impact_threshold_j(model), RTOL)
+    assert table.shape == (phase.size, 10) and np.all(np.diff(owner) >= 0)
+    assert np.array_equal(np.bincount(owner, minlength=w_r.size), used) and np.all(error <= RTOL)
+    for i in range(w_r.size):
+        mine = owner == i
+        order = np.argsort(phase[mine])
+        nodes, weights = phase[mine][order], weight[mine][order]
+        assert nodes[0] == 0.0 and nodes[-1] < 2.0 * math.pi and np.all(np.diff(nodes) > 0.0)
+        gaps = np.diff(np.append(nodes, 2.0 * math.pi))
+        assert np.allclose(weights, 0.5 * (gaps + np.roll(gaps, 1)), rtol=1e-12, atol=0.0)
+    assert used[2] == 16 and used[0] > 16  # a pinned point stops at the first 16, a detaching one refines
