@@ -294,8 +294,10 @@ def evaluate_arrays(
     out: dict[str, NDArray[Any]] = {n: np.full(size, math.nan) for n in metrics}
     out |= {"events": np.zeros(size, dtype=np.int64), "feasible": np.zeros(size, dtype=bool)}
     out["violations"] = np.full(size, "", dtype=object)
-    groups: dict[tuple[Any, ...], Any] = {(): np.arange(size, dtype=np.int64)} if not design else {}
-    for i, key in enumerate(zip(*(columns[k].tolist() for k in design), strict=True) if design else ()):
+    groups: dict[tuple[Any, ...], Any] = {}
+    if not design:  # one mill: every point in one group
+        groups[()] = np.arange(size, dtype=np.int64)
+    for i, key in enumerate(zip(*(columns[k].tolist() for k in design), strict=True)):
         groups.setdefault(key, []).append(i)
     base_data = base.model_dump(mode="json")
     for key, members in groups.items():

@@ -37,7 +37,6 @@ the summary's weighted sums are numpy, here.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -53,8 +52,6 @@ from millctl.physics.telemetry import MIN_OMEGA_R_RAD_S
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-Sampler = Callable[[IntArray, FloatArray], FloatArray]
-"""``sample(point_index, lift_phase_rad) -> table``: one :data:`~millctl.physics.kernels.TELEMETRY` row a sample."""
 
 FLIGHT_CAP_S = 2.0
 """Longest flight a level-(b) sample follows (s), as :mod:`millctl.physics.telemetry`."""
@@ -91,18 +88,6 @@ def scene_rows(model: MillModel, w_r: FloatArray, w_v: FloatArray, theta0_rad: F
     rows[:, kernels.PARAMS.index("omega_v_rad_s")] = strokes(model.cam) * w_v
     rows[:, kernels.PARAMS.index("theta0_rad")] = theta0_rad
     return rows
-
-
-def sampler(model: MillModel, w_r: FloatArray, w_v: FloatArray) -> Sampler:
-    """The compiled level-(b) sample of these points at chosen lift phases (:func:`kernels.telemetry_at`)."""
-    start, pinned = start_angles(model, w_r, w_v)
-    rows, mu = scene_rows(model, w_r, w_v, start), model.powder_friction
-
-    def sample(point: IntArray, phase: FloatArray) -> FloatArray:
-        table: FloatArray = kernels.telemetry_at(rows, start, pinned, point, phase, FLIGHT_CAP_S, mu)
-        return table
-
-    return sample
 
 
 def mean_shear_pa(model: MillModel, w_r: FloatArray) -> FloatArray:
@@ -240,7 +225,6 @@ __all__ = [
     "integral_samples",
     "integrated_summary",
     "mean_shear_pa",
-    "sampler",
     "scene_rows",
     "start_angles",
     "weighted_summary",

@@ -27,9 +27,16 @@ FINEST_PHASE_RAD = 2.0 * math.pi / 4096
 """The narrowest interval the integral bisects (rad of lift phase)."""
 _CAPACITY = 2 * MAX_CAM_PHASES
 """Samples (and intervals) a point can hold: a round adds at most one a sample it has."""
-(_C_FOUND, _C_DETACHED, _C_DEPART, _C_THETA_D, _C_ENERGY, _C_FLIGHT, _C_WALL, _C_CONTACT, _C_ONSET, _C_SLIP) = range(
-    len(TELEMETRY)
-)
+_C_FOUND, _C_DEPART, _C_THETA_D, _C_ENERGY, _C_FLIGHT, _C_WALL, _C_CONTACT, _C_SLIP = (
+    TELEMETRY.index(name)
+    for name in (
+        "found", "depart_time_s", "theta_d_rad", "energy_j", "flight_time_s", "on_wall", "theta_contact_rad",
+        "slip_theta_rad",
+    )
+)  # fmt: skip
+"""The telemetry columns the rule reads (:data:`.layout.TELEMETRY`)."""
+_PHASE, _WEIGHT, _OWNER = len(TELEMETRY), len(TELEMETRY) + 1, len(TELEMETRY) + 2
+"""The columns :func:`_integrate` adds to a sample's telemetry row: its lift phase, trapezoid weight and point."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -135,10 +142,9 @@ def _refine_point(i, rows, start, pinned, w_r, lift_period_s, min_w_r, threshold
 
 @njit(cache=True, error_model="numpy")
 def _integrate(rows, start, pinned, w_r, lift_period_s, min_w_r, threshold_j, rtol, flight_cap, mu):  # type: ignore[no-untyped-def]
+    """Every point's samples, one row each: its telemetry, then :data:`_PHASE`, :data:`_WEIGHT`, :data:`_OWNER`."""
     size = rows.shape[0]
-    cap = max(size * 2 * FIRST_PHASES, 1)
-    table = np.empty((cap, len(TELEMETRY)))
-    phase, weight, owner = np.empty(cap), np.empty(cap), np.empty(cap, dtype=np.int64)
+    out = np.empty((max(size * 2 * FIRST_PHASES, 1), _OWNER + 1))
     used, error = np.zeros(size), np.zeros(size)
     buf = (
         np.empty((_CAPACITY, len(TELEMETRY))), np.empty((_CAPACITY, 6)), np.empty(_CAPACITY),
@@ -161,38 +167,15 @@ def _integrate(rows, start, pinned, w_r, lift_period_s, min_w_r, threshold_j, rt
             error[i] += score[k]
         error[i] *= rtol
         used[i] = taken
-        if filled + samples > table.shape[0]:  # grow the outputs
-            grown = 2 * (filled + samples)
-            table = _grown2(table, filled, grown)
-            phase, weight = _grown1(phase, filled, grown), _grown1(weight, filled, grown)
-            owner = _grown1i(owner, filled, grown)
-        table[filled : filled + samples] = p_table[:samples]
-        phase[filled : filled + samples] = p_phase[:samples]
-        weight[filled : filled + samples] = node_weight[:samples]
-        owner[filled : filled + samples] = i
+        if filled + samples > out.shape[0]:  # double the output
+            grown = np.empty((2 * (filled + samples), out.shape[1]))
+            grown[:filled] = out[:filled]
+            out = grown
+        block = out[filled : filled + samples]
+        block[:, :_PHASE] = p_table[:samples]
+        block[:, _PHASE], block[:, _WEIGHT], block[:, _OWNER] = p_phase[:samples], node_weight[:samples], i
         filled += samples
-    return table[:filled], phase[:filled], weight[:filled], owner[:filled], used, error
-
-
-@njit(cache=True, error_model="numpy")
-def _grown2(a, filled, size):  # type: ignore[no-untyped-def]
-    out = np.empty((size, a.shape[1]))
-    out[:filled] = a[:filled]
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _grown1(a, filled, size):  # type: ignore[no-untyped-def]
-    out = np.empty(size)
-    out[:filled] = a[:filled]
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def _grown1i(a, filled, size):  # type: ignore[no-untyped-def]
-    out = np.empty(size, dtype=np.int64)
-    out[:filled] = a[:filled]
-    return out
+    return out[:filled], used, error
 
 
 def phase_integral(
@@ -222,10 +205,9 @@ def phase_integral(
     w_r = np.ascontiguousarray(table[:, _WR])
     lift = np.ascontiguousarray(lift_period_s, dtype=np.float64).reshape(size)
     args = (float(min_omega_r_rad_s), float(threshold_j), float(rtol), float(flight_cap_s), float(friction))
-    result: tuple[FloatArray, FloatArray, FloatArray, np.ndarray, FloatArray, FloatArray] = _integrate(
-        table, start, flags, w_r, lift, *args
-    )
-    return result
+    samples, used, error = _integrate(table, start, flags, w_r, lift, *args)
+    owner = samples[:, _OWNER].astype(np.int64)
+    return samples[:, :_PHASE], samples[:, _PHASE], samples[:, _WEIGHT], owner, used, error
 
 
 __all__ = ["FINEST_PHASE_RAD", "FIRST_PHASES", "MAX_CAM_PHASES", "phase_integral"]

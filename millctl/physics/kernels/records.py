@@ -1,8 +1,7 @@
 """Kernel result rows (:data:`.layout.OUT`) into the batch API's records (:data:`millctl.physics.batch.BATCH_DTYPE`).
 
-One compiled pass, field by field and row by row: numpy's per-field copies into a packed structured array,
-with their masks and casts, cost ~90 ns a row, a third of a one-rod event's time in the kernel (``python -m
-bench``'s batch figures go through this).
+One compiled pass, field by field and row by row, instead of numpy's per-field copies into a packed
+structured array with their masks and casts (``python -m bench``'s batch figures go through this).
 """
 
 from __future__ import annotations

@@ -118,9 +118,8 @@ def _margin_first_zero(p, st, tr, i, t_end):  # type: ignore[no-untyped-def]
     that the slow term alone or the product bound keep positive are skipped (:func:`.detach._held_until`,
     :func:`.detach._product_until`). A step below the root finder's resolution ends in one Newton step, the
     zero to rounding (as the windowed search's Brent finds it, ~1e-14 s apart); a ride that grazes zero
-    without crossing goes to the windowed search after :data:`_SAFE_STEPS` steps. On the studies' 100 × 100
-    map the two margins take 6 steps together (11 with the slow term's certificate alone), against ~12 trig
-    sums a margin of the windowed search's cell tests and Brent.
+    without crossing goes to the windowed search after :data:`_SAFE_STEPS` steps. The product bound starts
+    the steps at the end of the arc no cam phase can reach zero in, so few steps remain to the first zero.
     """
     curvature_max, jerk_max = _trig_bound(tr, i, 2), _trig_bound(tr, i, 3)
     edge, arcs = _held_edge(tr, i), _product_arcs(tr, i)

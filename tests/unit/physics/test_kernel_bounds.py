@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from millctl.physics.kernels.contacts import _tangent_bound
 from millctl.physics.kernels.detach import _product_arcs, _product_until
-from millctl.physics.kernels.layout import _TRIG_COLUMNS
+from millctl.physics.kernels.layout import _T_G, _T_KAPPA, _T_TH0, _T_U, _T_V, _TA, _TRIG_COLUMNS, _TW, PARAMS
 from millctl.physics.kernels.roots import _hermite_start
 from millctl.physics.kernels.telemetry import _local_safe_step, _slip_rows
 from millctl.physics.kernels.trig import _fill_trig_rows, _trig
@@ -118,8 +118,6 @@ def test_the_hermite_start_lands_near_the_root_of_a_smooth_function() -> None:
 
 def _product_rows(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """A random scene's N row (either law) and its two no-slip margins: rows in product form, and the scene row."""
-    from millctl.physics.kernels.layout import PARAMS
-
     p = np.zeros(len(PARAMS))
     values = {
         "r0_m": 0.02, "rod_radius_m": 0.004, "eccentricity_m": rng.uniform(0.0005, 0.004), "g_m_s2": 9.81,
@@ -148,7 +146,7 @@ def test_the_product_certificate_holds_at_every_time_it_covers() -> None:
             if until <= t:
                 continue
             covered += 1
-            span = min(until, t + 4.0 * math.pi / tr[i, 8]) - t  # two revolutions at most
+            span = min(until, t + 4.0 * math.pi / tr[i, _TW]) - t  # two revolutions at most
             for tau in t + span * _GRID:
                 assert _trig(tr, i, tau, 0, 1.0) > 0.0, (i, t, until, tau)
             if until < math.inf:
@@ -167,11 +165,11 @@ def test_the_product_certificate_ends_where_the_worst_cam_phase_reaches_zero() -
             until = _product_until(tr, i, 0.0, arcs)
             if not 0.0 < until < math.inf:
                 continue
-            w, th0 = tr[i, 8], tr[i, 22]
-            u, v, g = (1.0, 0.0, tr[i, 2]) if i == 0 else (tr[i, 26], tr[i, 27], tr[i, 25])
+            w, th0 = tr[i, _TW], tr[i, _T_TH0]
+            u, v, g = (1.0, 0.0, tr[i, _TA]) if i == 0 else (tr[i, _T_U], tr[i, _T_V], tr[i, _T_G])
             theta = w * until + th0
             s = u * math.sin(theta) + v * math.cos(theta)
-            worst = (g + abs(tr[i, 21])) * s if s > 0.0 else (g - abs(tr[i, 21])) * s
+            worst = (g + abs(tr[i, _T_KAPPA])) * s if s > 0.0 else (g - abs(tr[i, _T_KAPPA])) * s
             assert abs(tr[i, 0] - worst) <= 1e-6 * tr[i, 0], (i, until)
             tight += 1
     assert tight > 50

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from millctl.config import MillConfig
+from millctl.physics import kernels
 from millctl.physics.model import MillModel
 from millctl.studies import phase_integral as pi
 from millctl.studies.loads import impact_threshold_j
@@ -22,9 +23,11 @@ def _speeds(*rpm: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
 
 def _fixed(model: MillModel, w_r: np.ndarray, w_v: np.ndarray, k: int) -> dict[str, np.ndarray]:
     """The summary at k even phases through the same weighted sums (unit weights)."""
-    sample = pi.sampler(model, w_r, w_v)
+    start, pinned = pi.start_angles(model, w_r, w_v)
+    rows = pi.scene_rows(model, w_r, w_v, start)
     point = np.repeat(np.arange(w_r.size, dtype=np.int64), k)
-    table = sample(point, np.tile(2.0 * math.pi * np.arange(k) / k, w_r.size))
+    phases = np.tile(2.0 * math.pi * np.arange(k) / k, w_r.size)
+    table = kernels.telemetry_at(rows, start, pinned, point, phases, pi.FLIGHT_CAP_S, model.powder_friction)
     return pi.weighted_summary(model, w_r, impact_threshold_j(model), point, np.ones(point.size), table)
 
 
